@@ -1,0 +1,172 @@
+"""Kinematics of the helix-driven wave (paper Section 4.1 and Appendix A.1).
+
+Body frame: origin at the robot's centre of mass, x forward (towards the head), y normal to the
+surfaces. The backbone is the wave the helix imposes on the links:
+
+    y(X, phase) = A cos(k (X_h - X) + phase),      k = 2 pi / L, phase = omega t,
+
+with X_h the hinge where the base link meets the head. Read literally, the paper's
+``k (X_1F - X) - omega t`` sends the wave towards the tail, and a down tip at a trough then sweeps
+forward, which would drive the robot tail-first. We flip the sense of the helix (``+ phase``) so
+that the wave travels head-wards, the tips in contact sweep backwards, and the robot advances
+head-first along +x, the way its wave travels (model.md section 3).
+
+Everything here depends on the phase only, so the dynamics uses a table of tip positions over one
+wave cycle (``TipTable``) instead of solving the chain at every step.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import ParameterError, RobotParams
+
+
+@dataclass(frozen=True)
+class LinkGeometry:
+    """Link positions in the body frame for an array of phases (leading axes = phase shape).
+
+    Arrays of points are complex numbers x + i y (one multiply rotates them).
+    """
+
+    hinge: complex               # base-link hinge on the head
+    base_angle: np.ndarray       # (...,) angle of the base link, rad (rear end up is positive)
+    joints: np.ndarray           # (..., n + 1) front end of each wave link, then the last rear end
+    centres: np.ndarray          # (..., n)
+    angles: np.ndarray           # (..., n) direction of each wave link (rad), 0 = along +x
+    up_tips: np.ndarray          # (..., n) tips that touch the top surface
+    down_tips: np.ndarray        # (..., n) tips that touch the bottom surface
+
+
+def hinge_x(robot: RobotParams) -> float:
+    """The wave occupies the rear of the body; the COM sits at the middle of the robot's length
+    (a uniform bar, as the default pitch inertia assumes)."""
+    tail = -robot.length / 2.0
+    return tail + robot.wave_length_along_body
+
+
+def backbone(robot: RobotParams, X, phase):
+    """Backbone height y and slope psi = dy/dX at body abscissa X."""
+    k = 2.0 * np.pi / robot.wavelength
+    arg = k * (hinge_x(robot) - X) + phase
+    return robot.amplitude * np.cos(arg), robot.amplitude * k * np.sin(arg)
+
+
+def base_link_angle(robot: RobotParams, phase) -> np.ndarray:
+    """Solve sin(theta) = (A / b0) cos(k b0 cos(theta) + phase) (paper's base link equation)."""
+    phase = np.asarray(phase, dtype=float)
+    A, b0 = robot.amplitude, robot.base_link_width
+    k = 2.0 * np.pi / robot.wavelength
+    theta = np.arcsin(np.clip(A / b0 * np.cos(k * b0 + phase), -1.0, 1.0))
+    for _ in range(50):
+        arg = k * b0 * np.cos(theta) + phase
+        g = b0 * np.sin(theta) - A * np.cos(arg)
+        dg = b0 * np.cos(theta) - A * np.sin(arg) * k * b0 * np.sin(theta)
+        step = g / dg
+        theta = theta - step
+        if np.max(np.abs(step)) < 1e-14:
+            break
+    return theta
+
+
+def link_geometry(robot: RobotParams, phase) -> LinkGeometry:
+    """Positions of every link for the given phase(s).
+
+    The helix runs through the centre of every wave link and the links ride in the body's frame
+    so that they "cancel out the rotational motion, and instead maintain vertical oscillation"
+    (paper Section 2.1): link i's centre stays at a fixed body abscissa X_i on the backbone, and
+    the rigid link (width b) turns with the backbone slope there. Its tips sit at r along the
+    backbone normal n = (-psi, 1) / sqrt(1 + psi^2) (Appendix A.1). Neighbouring joints meet
+    where the slope is small and open up by a few mm where it is steep, as the real links' slotted
+    joints allow.
+
+    Hanging each link from the rear joint of the one in front (a pure chain) would instead slide
+    the whole wave back and forth by b0 (1 - cos theta_base), about 12 mm a cycle, and double the
+    tips' speed at the crests, contradicting the rigid-surface speed 4 pi^2 A r f / L the paper
+    uses for v_theory.
+    """
+    phase = np.asarray(phase, dtype=float)
+    n, b, r = robot.wave_links, robot.link, robot.tip_distance
+    hinge = complex(hinge_x(robot), 0.0)
+    X = hinge.real - robot.base_link_width - b * (np.arange(n) + 0.5)
+    y, psi = backbone(robot, X, phase[..., None])
+    angles = np.arctan(psi)
+    direction = np.exp(1j * angles)
+    centres = X + 1j * y
+    joints = np.concatenate([centres + 0.5 * b * direction,
+                             centres[..., -1:] - 0.5 * b * direction[..., -1:]], axis=-1)
+    normal = 1j * direction
+    return LinkGeometry(hinge=hinge, base_angle=base_link_angle(robot, phase), joints=joints,
+                        centres=centres, angles=angles, up_tips=centres + r * normal,
+                        down_tips=centres - r * normal)
+
+
+def base_link_end(robot: RobotParams, base_angle):
+    """Rear end of the base link (it meets the backbone there), from its angle."""
+    return complex(hinge_x(robot), 0.0) - robot.base_link_width * np.exp(-1j * np.asarray(
+        base_angle))
+
+
+def interference(robot: RobotParams, samples: int = 720) -> float:
+    """Smallest clearance (m) between neighbouring links over a wave cycle; negative = overlap.
+
+    Consecutive links turn about their shared joint; on the concave side their tips close in.
+    A link is drawn as its spine (down tip to up tip): two links interfere when the spines of
+    neighbours come closer than zero along the chain, i.e. the tips swap order, or when any two
+    non-neighbouring spines cross.
+    """
+    geo = link_geometry(robot, np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False))
+    direction = np.exp(1j * geo.angles[..., :-1])  # unit vector of link i along the chain
+    clearance = np.inf
+    for tips in (geo.up_tips, geo.down_tips):
+        # Distance of tip i+1 behind tip i, measured along link i's direction (backwards).
+        gap = -((tips[..., 1:] - tips[..., :-1]) * np.conj(direction)).real
+        clearance = min(clearance, float(gap.min()))
+    return clearance
+
+
+def check_no_interference(robot: RobotParams) -> None:
+    clearance = interference(robot)
+    if clearance <= 0.0:
+        raise ParameterError(
+            f'the links interfere: neighbouring tips overlap by {-clearance * 1000:.2f} mm over a '
+            f'wave cycle (robot.tip_distance = {robot.tip_distance:g} m is too large for '
+            f'robot.link_width = {robot.link:g} m at this amplitude and wavelength)')
+
+
+def v_theory(robot: RobotParams, frequency: float) -> float:
+    """Advance speed over a rigid surface, 4 pi^2 A r f / L (paper, from its reference [29])."""
+    return 4.0 * np.pi ** 2 * robot.amplitude * robot.tip_distance * frequency / robot.wavelength
+
+
+class TipTable:
+    """Body-frame tip positions tabulated over one wave cycle, linearly interpolated.
+
+    Column order: the n down tips (bottom surface), then the n up tips (top surface).
+    2048 samples put the interpolation error near 1e-8 m, far below any penetration that matters.
+    """
+
+    def __init__(self, robot: RobotParams, samples: int = 2048):
+        self.samples = samples
+        phases = np.linspace(0.0, 2.0 * np.pi, samples + 1)
+        geo = link_geometry(robot, phases)
+        self.points = np.concatenate([geo.down_tips, geo.up_tips], axis=-1)  # (samples + 1, P)
+        self.slopes = np.diff(self.points, axis=0)                           # (samples, P)
+        self.points = np.ascontiguousarray(self.points[:-1])
+        self.scale = samples / (2.0 * np.pi)
+        n = robot.wave_links
+        # +1 for tips pressing into the top surface, -1 for the bottom one.
+        self.side = np.concatenate([-np.ones(n), np.ones(n)])
+
+    @property
+    def count(self) -> int:
+        return self.points.shape[1]
+
+    def at(self, phase):
+        """Tips at phase(s) in [0, 2 pi): shape phase.shape + (P,)."""
+        u = np.asarray(phase) * self.scale
+        i = u.astype(np.intp)
+        np.minimum(i, self.samples - 1, out=i)
+        w = (u - i)[..., None]
+        return self.points[i] + w * self.slopes[i]

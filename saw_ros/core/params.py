@@ -1,0 +1,249 @@
+"""Typed, validated parameters of the model: the one source of truth.
+
+Every field carries its unit, its allowed range and a description in its dataclass metadata, so
+that the ROS nodes (parameter descriptors), the YAML files in ``msg_config/`` and the command
+line all map onto the same definitions. Units are SI (m, s, kg, N, rad); degrees and cm appear
+only in human-facing output.
+
+Defaults are those of ``shared/docs/model.md`` section 8 (the paper's robot and surfaces, with the
+choices we made where the paper is silent).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, Iterator, Optional, Tuple
+
+
+class ParameterError(ValueError):
+    """An invalid parameter value: the message names the parameter, the value and the range."""
+
+
+def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
+         high: Optional[float] = None, low_open: bool = False, high_open: bool = False):
+    """A dataclass field with its unit, range and description kept beside the default."""
+    return field(default=default, metadata={
+        'unit': unit, 'description': description, 'low': low, 'high': high,
+        'low_open': low_open, 'high_open': high_open})
+
+
+def _range_text(meta: Dict[str, Any]) -> str:
+    low, high = meta['low'], meta['high']
+    left = '(' if meta['low_open'] else '['
+    right = ')' if meta['high_open'] else ']'
+    lo = '-inf' if low is None else f'{low:g}'
+    hi = 'inf' if high is None else f'{high:g}'
+    unit = f' {meta["unit"]}' if meta['unit'] else ''
+    return f'{left}{lo}, {hi}{right}{unit}'
+
+
+class _Validated:
+    """Mixin: checks every numeric field against its metadata range after construction."""
+
+    section: str = ''
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if value is None or not f.metadata:
+                continue
+            name = f'{self.section}.{f.name}'
+            if isinstance(value, bool):
+                continue
+            if isinstance(f.default, int) and not isinstance(f.default, bool):
+                if not isinstance(value, int) or isinstance(value, bool):
+                    raise ParameterError(f'{name} = {value!r} is invalid: must be an integer '
+                                         f'in {_range_text(f.metadata)}')
+            elif not isinstance(value, (int, float)):
+                raise ParameterError(f'{name} = {value!r} is invalid: must be a number in '
+                                     f'{_range_text(f.metadata)}')
+            else:
+                object.__setattr__(self, f.name, float(value))
+                value = float(value)
+            if not math.isfinite(value):
+                raise ParameterError(f'{name} = {value!r} is invalid: must be finite, in '
+                                     f'{_range_text(f.metadata)}')
+            meta = f.metadata
+            too_low = meta['low'] is not None and (
+                value <= meta['low'] if meta['low_open'] else value < meta['low'])
+            too_high = meta['high'] is not None and (
+                value >= meta['high'] if meta['high_open'] else value > meta['high'])
+            if too_low or too_high:
+                raise ParameterError(f'{name} = {value:g} is out of range: allowed '
+                                     f'{_range_text(meta)} ({meta["description"]})')
+        self._check()
+
+    def _check(self):
+        """Checks that involve several fields."""
+
+    def replace(self, **changes):
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class RobotParams(_Validated):
+    """The SAW robot: a rigid body carrying a helix-driven wave of links (paper Section 2)."""
+
+    section = 'robot'
+    mass: float = spec(0.313, 'kg', 'robot mass with batteries', 0.0, None, low_open=True)
+    length: float = spec(0.35, 'm', 'overall robot length', 0.0, None, low_open=True)
+    pitch_inertia: float = spec(0.0, 'kg m^2',
+                                'pitch moment of inertia about the COM; 0 means a uniform bar, '
+                                'mass * length^2 / 12', 0.0, None)
+    wavelength: float = spec(0.102, 'm', 'wavelength L of the helix', 0.0, None, low_open=True)
+    amplitude: float = spec(0.0185, 'm', 'half-amplitude A of the backbone wave', 0.0, None,
+                            low_open=True)
+    tip_distance: float = spec(0.0098, 'm', 'distance r from a link centre to its tips', 0.0,
+                               None, low_open=True)
+    link_width: float = spec(0.0, 'm', 'width b of a wave link; 0 means wavelength / 9', 0.0, None)
+    base_link_width: float = spec(0.020, 'm', 'width of the base link joining wave and head', 0.0,
+                                  None, low_open=True)
+    wave_links: int = spec(19, '', 'number of wave links (the base link comes in addition)', 1,
+                           200)
+
+    @property
+    def inertia(self) -> float:
+        if self.pitch_inertia > 0.0:
+            return self.pitch_inertia
+        return self.mass * self.length ** 2 / 12.0
+
+    @property
+    def link(self) -> float:
+        return self.link_width if self.link_width > 0.0 else self.wavelength / 9.0
+
+    @property
+    def height(self) -> float:
+        """Tallest extent of the robot: crest tip above the axis, trough tip below it."""
+        return 2.0 * (self.amplitude + self.tip_distance)
+
+    @property
+    def wave_length_along_body(self) -> float:
+        return self.base_link_width + self.wave_links * self.link
+
+    def _check(self):
+        if self.amplitude >= self.base_link_width:
+            raise ParameterError(
+                f'robot.amplitude = {self.amplitude:g} m is invalid: the base link '
+                f'(robot.base_link_width = {self.base_link_width:g} m) must be longer than the '
+                f'amplitude to reach the wave')
+        if self.wave_length_along_body >= self.length:
+            raise ParameterError(
+                f'robot.wave_links = {self.wave_links} links of {self.link:g} m do not fit in '
+                f'robot.length = {self.length:g} m: allowed up to '
+                f'{int((self.length - self.base_link_width) / self.link)} links')
+
+
+@dataclass(frozen=True)
+class SurfaceParams(_Validated):
+    """The two compliant surfaces (paper Section 4.2, Eqs. 6-8)."""
+
+    section = 'surface'
+    normal_stiffness: float = spec(15500.0, 'N/m^exponent',
+                                   'Hertz normal stiffness kn: Fn = kn * delta^exponent', 0.0, None,
+                                   low_open=True)
+    hertz_exponent: float = spec(1.5, '', 'exponent of the normal law (1.5 Hertz, 1.0 linear)',
+                                 1.0, 3.0)
+    tangential_stiffness: float = spec(1082.0, 'N/m', 'tangential stiffness kt of the surface', 0.0,
+                                       None, low_open=True)
+    friction_coefficient: float = spec(1.0, '', 'Coulomb coefficient of friction mu', 0.0, 5.0)
+    restitution: float = spec(0.9, '', 'coefficient of restitution e: unloading force factor', 0.0,
+                              1.0, low_open=True)
+    max_penetration: float = spec(0.015, 'm',
+                                  'deepest a tip can physically press into a surface; deeper '
+                                  'means the simulation diverged', 0.0, None, low_open=True)
+
+
+@dataclass(frozen=True)
+class ConditionParams(_Validated):
+    """The operating conditions of one run: slope, gap, load and wave frequency."""
+
+    section = 'scenario'
+    slope: float = spec(0.0, 'rad', 'slope alpha of the surfaces (+ climbs, - descends)',
+                        -math.pi / 2, math.pi / 2)
+    gap: float = spec(0.045, 'm', 'distance h between the bottom and top surfaces', 0.0, None,
+                      low_open=True)
+    external_force: float = spec(0.0, 'N', 'resisting force F_ext along -x at the COM (tether)',
+                                 None, None)
+    frequency: float = spec(1.0, 'Hz', 'helix turns per second f (0 stops the wave)', 0.0, 50.0)
+
+
+@dataclass(frozen=True)
+class IntegrationParams(_Validated):
+    """Time stepping (paper Section 4.3: semi-implicit Euler at 1 kHz)."""
+
+    section = 'integration'
+    dt: float = spec(0.001, 's', 'integration time step', 0.0, 0.01, low_open=True)
+    duration: float = spec(5.0, 's', 'simulated time of a run', 0.0, None)
+
+
+@dataclass(frozen=True)
+class MotorParams(_Validated):
+    """Voltage to helix frequency: the paper does not give it; no-load linear by default.
+
+    f = hz_per_volt * (V - dead_voltage) for V above the dead voltage. 0.24 Hz/V puts 6 V at
+    1.44 Hz, i.e. about 10 cm/s over a rigid surface and 6.8 cm/s at AR 0.68 (paper Fig. 15).
+    """
+
+    section = 'motor'
+    hz_per_volt: float = spec(0.24, 'Hz/V', 'helix frequency per volt above the dead voltage', 0.0,
+                              None, low_open=True)
+    dead_voltage: float = spec(0.0, 'V', 'voltage below which the motor does not turn', 0.0, None)
+
+    def frequency(self, voltage: float) -> float:
+        if not math.isfinite(voltage) or voltage < 0.0:
+            raise ParameterError(f'motor voltage = {voltage!r} is invalid: must be >= 0 V')
+        return max(0.0, self.hz_per_volt * (voltage - self.dead_voltage))
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything one simulation run needs."""
+
+    robot: RobotParams = field(default_factory=RobotParams)
+    surface: SurfaceParams = field(default_factory=SurfaceParams)
+    scenario: ConditionParams = field(default_factory=ConditionParams)
+    integration: IntegrationParams = field(default_factory=IntegrationParams)
+    motor: MotorParams = field(default_factory=MotorParams)
+
+    def __post_init__(self):
+        lowest = self.robot.height - 2.0 * self.surface.max_penetration
+        if self.scenario.gap <= lowest:
+            raise ParameterError(
+                f'scenario.gap = {self.scenario.gap:g} m is invalid: the robot '
+                f'({self.robot.height * 1000:.1f} mm tall) cannot be placed in it without '
+                f'pressing deeper than surface.max_penetration = '
+                f'{self.surface.max_penetration:g} m into each surface; allowed ({lowest:g}, '
+                f'inf) m')
+
+    # -- flat name access, shared by the YAML files, the node parameters and the CLI ----------
+    SECTIONS = ('robot', 'surface', 'scenario', 'integration', 'motor')
+
+    def flat(self) -> Dict[str, Any]:
+        """{'surface.normal_stiffness': 15500.0, ...}"""
+        return {name: value for name, value, _ in self.describe()}
+
+    def describe(self) -> Iterator[Tuple[str, Any, Dict[str, Any]]]:
+        """(dotted name, value, metadata) for every parameter."""
+        for section in self.SECTIONS:
+            group = getattr(self, section)
+            for f in dataclasses.fields(group):
+                yield f'{section}.{f.name}', getattr(group, f.name), dict(f.metadata)
+
+    def with_values(self, values: Dict[str, Any]) -> 'Scenario':
+        """A new, validated Scenario with dotted-name values changed; unknown names raise."""
+        groups = {s: {} for s in self.SECTIONS}
+        for name, value in values.items():
+            section, _, key = name.partition('.')
+            if section not in groups or key not in {f.name for f in
+                                                    dataclasses.fields(getattr(self, section))}:
+                raise ParameterError(f'unknown parameter {name!r}; known: '
+                                     f'{", ".join(sorted(self.flat()))}')
+            groups[section][key] = value
+        parts = {s: getattr(self, s).replace(**c) if c else getattr(self, s)
+                 for s, c in groups.items()}
+        return Scenario(**parts)
+
+
+def parameter_names() -> Tuple[str, ...]:
+    return tuple(Scenario().flat())

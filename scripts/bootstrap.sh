@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Creates (once) the virtual environment with the pinned ROS 2 Jazzy wheels and the package, laid
+# out so that `ros2 run saw_ros <exe>` would find the executables, then exports the environment.
+# Sourced by scripts/main.sh and scripts/test.sh; safe to run again (it skips what is done).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="$ROOT/.venv"
+PY="${PYTHON:-$(command -v python3.11 || command -v python3)}"
+
+stamp_of() { cat "$ROOT/requirements.txt" "$ROOT/setup.py" "$ROOT/setup.cfg" | sha256sum | cut -c1-16; }
+if [ ! -x "$VENV/bin/python" ]; then
+  echo "[bootstrap] creating $VENV with $("$PY" --version)" >&2
+  "$PY" -m venv "$VENV"
+fi
+if [ "$(cat "$VENV/.saw_ros_stamp" 2>/dev/null)" != "$(stamp_of)" ]; then
+  echo "[bootstrap] installing pinned wheels (requirements.txt) and saw_ros" >&2
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r "$ROOT/requirements.txt"
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check --no-deps -e "$ROOT"
+  # pip ignores setup.cfg's script_dir: put the executables where `ros2 run` looks,
+  # <prefix>/lib/saw_ros/<exe> (the venv is laid out like a ROS install prefix).
+  mkdir -p "$VENV/lib/saw_ros" "$VENV/share/ament_index/resource_index/packages" "$VENV/share/saw_ros"
+  for exe in simulator camera vision comparison recorder player; do
+    ln -sf "../../bin/$exe" "$VENV/lib/saw_ros/$exe"
+  done
+  # Editable installs skip data_files: the ament index marker and package.xml, by hand.
+  cp "$ROOT/resource/saw_ros" "$VENV/share/ament_index/resource_index/packages/saw_ros"
+  cp "$ROOT/package.xml" "$VENV/share/saw_ros/package.xml"
+  ln -sfn "$ROOT/msg_config" "$VENV/share/saw_ros/msg_config"
+  stamp_of > "$VENV/.saw_ros_stamp"
+fi
+export PATH="$VENV/bin:$PATH"
+export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+export PYTHONUNBUFFERED=1

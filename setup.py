@@ -1,0 +1,28 @@
+"""ament_python package: colcon build + ros2 run on a ROS 2 Jazzy install, pip in a venv here."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'saw_ros'
+NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'player')
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['tests', 'tests.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/msg_config', glob('msg_config/*')),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='saw_ros developers',
+    maintainer_email='saw_ros@example.com',
+    description='SAW wave robot between flexible surfaces: simulator, vision, comparison, bags',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [f'{name} = saw_ros.nodes.{name}:main' for name in NODES]
+        + ['saw-ros = saw_ros.cli:main'],
+    },
+)
