@@ -128,7 +128,7 @@ class Simulator:
         # penetration = side * (y - level): top surface at y = gap, bottom at y = 0.
         self._level = np.where(side > 0, gap, 0.0) * side           # (S, P)
         self._side = side
-        self._omega_dt = np.array([TWO_PI * c.frequency * self.dt for c in cond])
+        self._omega_dt = np.array([TWO_PI * s.frequency * self.dt for s in scenarios])
         mass = np.array([s.robot.mass for s in scenarios])
         inertia = np.array([s.robot.inertia for s in scenarios])
         self._inv_inertia = (1.0 / np.stack([mass, mass, inertia])) * self.dt

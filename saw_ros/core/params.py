@@ -189,6 +189,8 @@ class MotorParams(_Validated):
     hz_per_volt: float = spec(0.24, 'Hz/V', 'helix frequency per volt above the dead voltage', 0.0,
                               None, low_open=True)
     dead_voltage: float = spec(0.0, 'V', 'voltage below which the motor does not turn', 0.0, None)
+    voltage: float = spec(0.0, 'V', 'motor voltage; above 0 it sets the helix frequency '
+                          '(hz_per_volt) instead of scenario.frequency', 0.0, 48.0)
 
     def frequency(self, voltage: float) -> float:
         if not math.isfinite(voltage) or voltage < 0.0:
@@ -215,6 +217,14 @@ class Scenario:
                 f'pressing deeper than surface.max_penetration = '
                 f'{self.surface.max_penetration:g} m into each surface; allowed ({lowest:g}, '
                 f'inf) m')
+
+    @property
+    def frequency(self) -> float:
+        """Helix frequency of this run, Hz: from motor.voltage when it is set, else
+        scenario.frequency."""
+        if self.motor.voltage > 0.0:
+            return self.motor.frequency(self.motor.voltage)
+        return self.scenario.frequency
 
     # -- flat name access, shared by the YAML files, the node parameters and the CLI ----------
     SECTIONS = ('robot', 'surface', 'scenario', 'integration', 'motor')
