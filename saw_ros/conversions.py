@@ -202,7 +202,7 @@ class JointTable:
     """Base-link and wave-link angles tabulated over one wave cycle, linearly interpolated.
 
     ``link_geometry`` solves the base link's angle by Newton iterations: too slow for every step
-    at 1 kHz. 4096 samples keep the interpolation error under 1e-6 rad.
+    at 1 kHz. 4096 samples keep the interpolation error under 1e-5 rad.
     """
 
     def __init__(self, robot, samples: int = 4096):

@@ -73,6 +73,12 @@ class SimulatorNode(Node):
         self.declare_parameter('duration', 0.0, ParameterDescriptor(
             description='simulated time after which the node exits by itself (code 0), s; '
                         '0 = run until stopped', additional_constraints='>= 0'))
+        self.declare_parameter('wait_for_subscribers', 0, ParameterDescriptor(
+            description='before the first step, wait until every topic has at least this many '
+                        'subscribers (tests, benchmarks, recordings that must see every step); '
+                        '0 = start at once', additional_constraints='>= 0'))
+        self._wait_subscribers = int(self.get_parameter('wait_for_subscribers').value)
+        self.started = self._wait_subscribers <= 0
         self._rtf = self._check_rtf(self.get_parameter('real_time_factor').value)
         self._duration = self._check_duration(self.get_parameter('duration').value)
         self.add_on_set_parameters_callback(self._validate_own)
@@ -106,6 +112,9 @@ class SimulatorNode(Node):
         self._last_warning = -math.inf
         self._rebase(time.monotonic())
         self._timer = self.create_timer(TICK_PERIOD, self._tick)
+        if not self.started:
+            self.get_logger().info(f'waiting for {self._wait_subscribers} subscriber(s) on every '
+                                   f'topic before the first step')
         self.get_logger().info(
             f'simulating at {1.0 / self.dt:g} Hz of simulated time, real_time_factor '
             f'{self._rtf:g}, duration {self._duration:g} s (0 = until stopped), helix '
@@ -128,6 +137,9 @@ class SimulatorNode(Node):
 
     def _validate_own(self, parameters) -> SetParametersResult:
         for p in parameters:
+            if p.name == 'wait_for_subscribers':
+                reason = 'wait_for_subscribers only applies at start-up'
+                return SetParametersResult(successful=False, reason=reason)
             try:
                 if p.name == 'real_time_factor':
                     self._check_rtf(p.value)
@@ -178,6 +190,13 @@ class SimulatorNode(Node):
         if self.finished:
             return
         now = time.monotonic()
+        if not self.started:
+            if min(p.get_subscription_count() for p in self._publishers_all) < \
+                    self._wait_subscribers:
+                return
+            self.started = True
+            self._rebase(now)
+            self.get_logger().info('subscribers present: starting')
         if self._rtf > 0.0:
             due = self._anchor_steps + int((now - self._anchor_wall) * self._rtf / self.dt)
             todo = due - self.steps
@@ -277,6 +296,8 @@ OWN_PARAMETERS = (
     ('real_time_factor', 1.0, 'simulated seconds per wall-clock second; 0 = as fast as possible'),
     ('duration', 0.0, 'seconds of simulated time, then the node exits with code 0; 0 = run until '
                       'stopped'),
+    ('wait_for_subscribers', 0, 'before the first step, wait until every topic has at least '
+                                'this many subscribers; 0 = start at once'),
 )
 YAML_HEADER = """\
 Parameters of the saw_ros simulator node:

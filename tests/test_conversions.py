@@ -1,0 +1,138 @@
+"""numpy -> message conversions of the simulator, without any node."""
+import math
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import PointCloud2, PointField
+
+from saw_ros import conversions as conv
+from saw_ros.core import Scenario, Simulator, link_geometry
+
+
+def test_stamps_are_exact_integer_nanoseconds():
+    dt_ns = conv.dt_nanoseconds(0.001)
+    assert dt_ns == 1_000_000
+    # 1 h of 1 kHz steps: no float drift, seconds roll over exactly.
+    stamp = conv.time_msg(3_600_000 * dt_ns + 999 * dt_ns)
+    assert (stamp.sec, stamp.nanosec) == (3600, 999_000_000)
+    assert conv.stamp_ns(stamp) == 3_600_999_000_000
+    assert conv.clock_msg(2 * dt_ns).clock.nanosec == 2_000_000
+    with pytest.raises(ValueError):
+        conv.dt_nanoseconds(1e-10)
+
+
+def test_pose_twist_wrench_frames_and_values():
+    pose = conv.pose_msg(0.1, 0.0225, 0.3, 5_000_000)
+    assert pose.header.frame_id == 'surface'
+    assert (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) == (0.1, 0.0225, 0)
+    q = pose.pose.orientation
+    assert (q.x, q.y) == (0.0, 0.0) and math.isclose(q.z ** 2 + q.w ** 2, 1.0)
+    assert math.isclose(conv.yaw_of(q), 0.3)
+    twist = conv.twist_msg(0.05, -0.01, 0.2, 5_000_000)
+    assert twist.header.frame_id == 'surface'
+    assert (twist.twist.linear.x, twist.twist.linear.y, twist.twist.angular.z) == (0.05, -0.01,
+                                                                                     0.2)
+    wrench = conv.wrench_msg(1.0, 2.0, 0.01, 5_000_000)
+    assert wrench.header.frame_id == 'base_link'
+    assert (wrench.wrench.force.x, wrench.wrench.force.y, wrench.wrench.torque.z) == (1.0, 2.0,
+                                                                                      0.01)
+    # Filling a message in place gives the same message as building it.
+    again = conv.pose_msg(0.1, 0.0225, 0.3, 5_000_000, out=conv.pose_msg(9, 9, 9, 1))
+    assert again == pose
+
+
+def _hand_points():
+    # Two wave links; columns: down tips (bottom) of links 0, 1, then up tips (top) of 0, 1.
+    tips = np.array([0.10 - 0.001j, 0.09 + 0.0j, 0.10 + 0.046j, 0.09 + 0.044j])
+    normal = np.array([2.0, 0.0, 0.5, 0.0])
+    tangential = np.array([-0.3, 0.0, 0.1, 0.0])
+    touching = np.array([True, False, True, False])
+    slipping = np.array([False, False, True, False])
+    return conv.contact_points(tips, normal, tangential, touching, slipping)
+
+
+def test_contact_points_only_tips_in_contact_with_link_and_surface():
+    points = _hand_points()
+    assert len(points) == 2
+    assert points['link'].tolist() == [0, 0]
+    assert points['surface'].tolist() == [conv.BOTTOM, conv.TOP]
+    assert points['slipping'].tolist() == [0, 1]
+    np.testing.assert_allclose(points['y'], [-0.001, 0.046], rtol=1e-6)
+    assert (points['z'] == 0).all()
+
+
+def test_contacts_cloud_is_self_describing_and_round_trips():
+    points = _hand_points()
+    msg = conv.contacts_msg(points, 7_000_000)
+    assert msg.header.frame_id == 'surface'
+    assert (msg.height, msg.width, msg.is_dense, msg.is_bigendian) == (1, 2, True, False)
+    assert msg.point_step == 24 and msg.row_step == 48 and len(msg.data) == 48
+    types = {f.name: f.datatype for f in msg.fields}
+    assert types == {'x': PointField.FLOAT32, 'y': PointField.FLOAT32, 'z': PointField.FLOAT32,
+                     'normal_force': PointField.FLOAT32,
+                     'tangential_force': PointField.FLOAT32, 'link': PointField.UINT16,
+                     'surface': PointField.UINT8, 'slipping': PointField.UINT8}
+    assert all(f.count == 1 for f in msg.fields)
+    # Through CDR and back, read by field name.
+    back = conv.points_of(deserialize_message(serialize_message(msg), PointCloud2))
+    for name in points.dtype.names:
+        np.testing.assert_array_equal(back[name], points[name])
+    empty = conv.contacts_msg(points[:0], 8_000_000, out=msg)
+    assert (empty.width, len(empty.data), empty.row_step) == (0, 0, 0)
+
+
+def test_wrench_sums_forces_and_moments_about_the_com():
+    points = _hand_points()
+    x, y = 0.05, 0.0225
+    fx, fy, mz = conv.contact_wrench(points, x, y, 0.0)
+    # Bottom tip pushes up with 2 N, top tip down with 0.5 N; tangential -0.3 + 0.1.
+    assert math.isclose(fy, 2.0 - 0.5, rel_tol=1e-6)
+    assert math.isclose(fx, -0.2, rel_tol=1e-6)
+    rx = points['x'].astype(float) - x
+    ry = points['y'].astype(float) - y
+    expected = rx[0] * 2.0 - ry[0] * (-0.3) + rx[1] * (-0.5) - ry[1] * 0.1
+    assert math.isclose(mz, expected, rel_tol=1e-5)
+    # In base_link axes: the same force turned by -theta, the same moment.
+    fxb, fyb, mzb = conv.contact_wrench(points, x, y, 0.5)
+    assert math.isclose(fxb, math.cos(0.5) * fx + math.sin(0.5) * fy, rel_tol=1e-9)
+    assert math.isclose(fyb, -math.sin(0.5) * fx + math.cos(0.5) * fy, rel_tol=1e-9)
+    assert math.isclose(mzb, mz)
+
+
+def test_wrench_from_contacts_matches_the_core_forces():
+    """The core sums its own forces into the body's acceleration; rebuilding the net force from
+    the published points must give the same numbers (float32 aside)."""
+    sim = Simulator(Scenario())
+    for _ in range(300):
+        sim.step()
+    c = sim.contacts
+    points = conv.contact_points(sim.tip_positions[0], c.normal[0], c.tangential[0],
+                                 c.touching[0], c.slipping[0])
+    fx, fy, _ = conv.contact_wrench(points, sim.q[0, 0], sim.q[1, 0], 0.0)
+    side = sim.table.side
+    assert math.isclose(fx, c.tangential[0].sum(), rel_tol=1e-5, abs_tol=1e-6)
+    assert math.isclose(fy, -(side * c.normal[0]).sum(), rel_tol=1e-5, abs_tol=1e-6)
+
+
+def test_joint_table_matches_link_geometry():
+    robot = Scenario().robot
+    table = conv.JointTable(robot)
+    for phase in (0.0, 0.7, 3.0, 6.2):
+        geo = link_geometry(robot, phase)
+        angles, rates = table.at(phase, omega=2 * math.pi)
+        np.testing.assert_allclose(angles[0], geo.base_angle, atol=1e-5)
+        np.testing.assert_allclose(angles[1:], geo.angles, atol=1e-6)
+        # Rates: derivative of the exact geometry along the phase (central difference); the
+        # table's rate is its chord over one sample (2 pi / 4096): within 0.01 rad/s at 1 Hz.
+        h = 1e-5
+        ahead, behind = link_geometry(robot, phase + h), link_geometry(robot, phase - h)
+        np.testing.assert_allclose(rates[1:], (ahead.angles - behind.angles) / (2 * h)
+                                   * 2 * math.pi, atol=1e-2)
+    names = conv.joint_names(robot.wave_links)
+    assert names[:3] == ['helix', 'base_link_joint', 'link_00'] and names[-1] == 'link_18'
+    angles, rates = table.at(0.7, 2 * math.pi)
+    msg = conv.joint_state_msg(names, 0.7, 2 * math.pi, angles, rates, 3_000_000)
+    assert len(msg.name) == len(msg.position) == len(msg.velocity) == 21
+    assert msg.position[0] == 0.7 and msg.velocity[0] == 2 * math.pi
+    assert list(msg.position[1:]) == angles.tolist()
