@@ -1,0 +1,118 @@
+"""Node ``loadgen``: publishes the simulator's and the camera's topic types at fixed rates with
+counted messages, to test and benchmark the recorder without the simulator.
+
+Parameters: ``rate`` (Hz, for each 1 kHz-class topic), ``duration`` (s), ``streams`` (how many of
+clock, pose, twist, contacts, contact_wrench, joint_states: 0-6), ``image_fps`` (0: no images),
+``image_width``/``image_height``, ``prefix`` (topic namespace, default ``/saw``; /clock is
+``<prefix>/clock`` unless ``prefix`` is /saw), ``start_delay`` (s to wait for subscribers).
+At the end it waits for reliable delivery, prints ``published <topic> <count>`` lines and exits.
+"""
+from __future__ import annotations
+
+import time
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
+
+from saw_ros.nodes.common import CLOCK_QOS, IMAGE_QOS, STREAM_QOS, run_node
+
+
+def _cloud(points: int) -> PointCloud2:
+    msg = PointCloud2()
+    msg.header.frame_id = 'world'
+    msg.height, msg.width = 1, points
+    msg.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1)
+                  for i, n in enumerate(('x', 'y', 'z', 'fx', 'fy', 'fz'))]
+    msg.point_step, msg.row_step = 24, 24 * points
+    msg.data = bytes(24 * points)
+    msg.is_dense = True
+    return msg
+
+
+class LoadGen(Node):
+    def __init__(self):
+        super().__init__('loadgen')
+        p = {name: self.declare_parameter(name, default).value for name, default in (
+            ('rate', 1000.0), ('duration', 3.0), ('streams', 6), ('image_fps', 0.0),
+            ('image_width', 1280), ('image_height', 720), ('prefix', '/saw'),
+            ('start_delay', 1.0))}
+        self.p = p
+        prefix = p['prefix'].rstrip('/')
+        clock_topic = '/clock' if prefix == '/saw' else f'{prefix}/clock'
+        joints = JointState(name=[f'segment_{i}' for i in range(12)], position=[0.0] * 12,
+                            velocity=[0.0] * 12, effort=[0.0] * 12)
+        streams = [(clock_topic, Clock, Clock(), CLOCK_QOS),
+                   (f'{prefix}/pose', PoseStamped, PoseStamped(), STREAM_QOS),
+                   (f'{prefix}/twist', TwistStamped, TwistStamped(), STREAM_QOS),
+                   (f'{prefix}/contacts', PointCloud2, _cloud(40), STREAM_QOS),
+                   (f'{prefix}/contact_wrench', WrenchStamped, WrenchStamped(), STREAM_QOS),
+                   (f'{prefix}/joint_states', JointState, joints, STREAM_QOS)][:int(p['streams'])]
+        self.streams = [(topic, self.create_publisher(t, topic, qos), msg)
+                        for topic, t, msg, qos in streams]
+        self.image = None
+        if p['image_fps'] > 0:
+            w, h = int(p['image_width']), int(p['image_height'])
+            img = Image(height=h, width=w, encoding='rgb8', step=3 * w)
+            img.header.frame_id = 'camera'
+            img.data = bytes(range(256)) * (3 * w * h // 256) + bytes(3 * w * h % 256)
+            self.image = (f'{prefix}/camera/image_raw',
+                          self.create_publisher(Image, f'{prefix}/camera/image_raw', IMAGE_QOS),
+                          img)
+        self.counts = {topic: 0 for topic, _, _ in self.streams}
+        if self.image:
+            self.counts[self.image[0]] = 0
+
+    def run(self) -> None:
+        p = self.p
+        time.sleep(p['start_delay'])  # discovery: the recorder subscribes to what it sees
+        period = 1.0 / p['rate'] if p['rate'] > 0 else None
+        image_period = 1.0 / p['image_fps'] if self.image else None
+        start = time.monotonic()
+        next_tick, next_image, tick = start, start, 0
+        end = start + p['duration']
+        while True:
+            now = time.monotonic()
+            if now >= end:
+                break
+            if period is not None and now >= next_tick:
+                tick += 1
+                stamp = Time(sec=tick // 1000, nanosec=(tick % 1000) * 1_000_000)
+                for topic, pub, msg in self.streams:
+                    if isinstance(msg, Clock):
+                        msg.clock = stamp
+                    else:
+                        msg.header.stamp = stamp
+                    pub.publish(msg)
+                    self.counts[topic] += 1
+                next_tick += period
+            if image_period is not None and now >= next_image:
+                topic, pub, img = self.image
+                img.header.stamp = Time(sec=int(now), nanosec=int((now % 1) * 1e9))
+                pub.publish(img)
+                self.counts[topic] += 1
+                next_image += image_period
+            wake = min(t for t in (next_tick if period else end,
+                                   next_image if image_period else end, end))
+            delay = wake - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        for _, pub, _ in self.streams:
+            pub.wait_for_all_acked()
+        if self.image:
+            self.image[1].wait_for_all_acked()
+        elapsed = time.monotonic() - start
+        for topic, n in self.counts.items():
+            print(f'published {topic} {n}', flush=True)
+        print(f'elapsed {elapsed:.3f}', flush=True)
+
+
+def main(args=None):
+    from saw_ros.nodes.common import exit_with
+    exit_with(run_node(LoadGen, args=args, spin=lambda node: node.run()))
+
+
+if __name__ == '__main__':
+    main()
