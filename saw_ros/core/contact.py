@@ -1,21 +1,55 @@
 """Contact law between a link tip and a compliant surface (paper Section 4.2, Eqs. 6-8, A.2).
 
-Normal: Hertz with restitution hysteresis, Fn = kn delta^p while the penetration grows and
-e kn delta^p while it shrinks. Which branch applies is decided against the deepest penetration of
-the current contact episode (model.md section 6): a tip is loading only while it presses deeper
-than it ever has since it touched. Comparing with the previous step instead would flip between the
-branches at every micro-vibration near equilibrium (chatter).
+Normal: Hertz with restitution hysteresis (Eq. 7), Fn = kn delta^p while the penetration grows
+and e kn delta^p while it shrinks. Switching the factor between 1 and e on the sign of the rate
+makes the force jump by (1 - e) kn delta^p: near equilibrium it chatters (model.md section 6),
+and the jumps make the motion so sensitive to tiny differences that cycles never repeat (the CCI
+stays near 3 %). We keep the paper's rule for every rate faster than ``hysteresis_speed`` v0 and
+make the switch continuous below it:
+
+    factor = (1 + e)/2 + (1 - e)/2 clip(rate / v0, -1, 1),
+
+which near rest is a Kelvin-Voigt damper. A load-unload cycle faster than v0 returns the share e
+of the stored energy, exactly as Eq. 7.
 
 Tangential: a spring anchored where the tip first touched, Ft = -kt (x - anchor), capped by
 Coulomb friction |Ft| <= mu Fn; beyond the cap the tip slips and the anchor is dragged along so
-that the spring holds exactly mu Fn. Losing contact forgets the anchor.
+that the spring holds exactly mu Fn. Losing contact forgets the anchor. The silicone's hysteresis
+acts on its shear as on its indentation: the spring force carries the same factor, with the rate
+of |x - anchor|. Without it a sticking contact is purely elastic and the robot's ~26 Hz
+tangential mode (sqrt(n kt / m)) rings on forever, at rest and while crawling.
 
 All arrays have shape (S, P): S scenarios, P tips. The kernel works in place on ``ContactState``
 so that the 1 kHz loop allocates nothing large.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Union
+
 import numpy as np
+
+Param = Union[float, np.ndarray]
+
+
+@dataclass
+class ContactLaw:
+    """The contact constants of a batch, folded for the 1 kHz loop (see ``_hysteresis``)."""
+
+    kn_mean: Param
+    kn_half: Param
+    kn_rate: Param
+    kt_mean: Param
+    kt_half: Param
+    kt_rate: Param
+    exponent: Param
+    mu: Param
+
+    @classmethod
+    def from_values(cls, kn, kt, mu, exponent, restitution, hysteresis_speed, dt):
+        mean, half = (1.0 + restitution) / 2.0, (1.0 - restitution) / 2.0
+        rate = half / (hysteresis_speed * dt)
+        return cls(kn * mean, kn * half, kn * rate, kt * mean, kt * half, kt * rate, exponent, mu)
 
 
 class ContactState:
@@ -24,16 +58,18 @@ class ContactState:
     def __init__(self, scenarios: int, tips: int):
         shape = (scenarios, tips)
         self.anchor = np.zeros(shape)        # x of the tangential spring's anchor, m
-        self.deepest = np.zeros(shape)       # deepest penetration of this contact episode, m
+        self.depth = np.zeros(shape)         # penetration at the last step (>= 0), m
+        self.factor = np.ones(shape)         # kn times the hysteresis factor (e..1)
+        self.stretch = np.zeros(shape)       # |x - anchor| at the last step, m
+        self.shear_factor = np.ones(shape)   # kt times the hysteresis factor (e..1)
+        self._s = np.zeros(shape)
         self.free = np.ones(shape, bool)     # not touching
-        self.loading = np.zeros(shape, bool)
         self.normal = np.zeros(shape)        # Fn >= 0, N, pushing the tip out of the surface
         self.tangential = np.zeros(shape)    # Ft along +x on the robot, N
         self.trial = np.zeros(shape)         # the spring force before the Coulomb cap, N
         self.cap = np.zeros(shape)           # mu Fn, N
         self._d = np.zeros(shape)
-        self._root = np.zeros(shape)
-        self._gain = np.zeros(shape)
+        self._work = np.zeros(shape)
 
     @property
     def touching(self):
@@ -45,53 +81,65 @@ class ContactState:
         return ~self.free & (np.abs(self.trial) > self.cap)
 
     def reset(self):
-        for a in (self.anchor, self.deepest, self.normal, self.tangential, self.trial, self.cap):
+        for a in (self.anchor, self.depth, self.normal, self.tangential, self.trial, self.cap):
             a[:] = 0.0
+        self.factor[:] = 0.0
+        self.stretch[:] = 0.0
+        self.shear_factor[:] = 1.0
         self.free[:] = True
-        self.loading[:] = False
 
 
-def normal_force(penetration, deepest, kn, exponent, restitution):
-    """Hertz force with hysteresis for given penetration(s) and episode depth(s) (pure, for tests
-    and plots): loading (penetration >= deepest) gives kn d^p, unloading e kn d^p."""
-    d = np.maximum(penetration, 0.0)
-    f = kn * d ** exponent
-    return np.where(d >= deepest, f, restitution * f)
+def hysteresis_factor(rate, restitution, hysteresis_speed):
+    """The force factor for a deformation rate (m/s): 1 loading, e unloading, linear between
+    -v0 and v0 (pure, for tests and plots)."""
+    return (1.0 + restitution) / 2.0 + (1.0 - restitution) / 2.0 * np.clip(
+        np.asarray(rate, float) / hysteresis_speed, -1.0, 1.0)
 
 
-def contact_step(state: ContactState, penetration, x, kn, kn_unloading, exponent, kt, inv_kt,
-                 mu):
+def _hysteresis(gain, now, before, stiffness_mean, stiffness_half_span, rate_gain):
+    """gain = k ((1 + e)/2 + (1 - e)/2 clip(rate / v0, -1, 1)) from the change of ``now``,
+    with the constants folded: k (1 + e)/2, k (1 - e)/2 and k (1 - e)/2 / (v0 dt)."""
+    np.subtract(now, before, out=gain)
+    gain *= rate_gain
+    np.minimum(gain, stiffness_half_span, out=gain)    # two ufuncs: np.clip is 3x slower here
+    np.maximum(gain, -stiffness_half_span, out=gain)
+    gain += stiffness_mean
+
+
+def contact_step(state: ContactState, penetration, x, law) -> tuple:
     """Advance the contact law one step for tips at ``penetration`` and abscissa ``x``.
 
-    Parameters are scalars or arrays broadcastable to (S, P); ``kn_unloading`` is e kn.
+    ``law`` holds the folded constants (scalars, or (S, P) arrays where scenarios differ):
+    kn_mean, kn_half, kn_rate, kt_mean, kt_half, kt_rate (see ``_hysteresis``), exponent, mu.
     Fills ``state.normal`` and ``state.tangential`` and updates the memory.
     """
     was_free = state.free
     free = np.less_equal(penetration, 0.0)
     d = np.maximum(penetration, 0.0, out=state._d)
-    if exponent == 1.5:
-        hertz = np.sqrt(d, out=state._root)
-        hertz *= d                           # d^1.5, three times faster than power()
+    _hysteresis(state.factor, d, state.depth, law.kn_mean, law.kn_half, law.kn_rate)
+    state.depth, state._d = d, state.depth         # keep d; recycle the old buffer
+    if law.exponent == 1.5:
+        fn = np.sqrt(d, out=state.normal)
+        fn *= d                                    # d^1.5, three times faster than power()
     else:
-        hertz = np.power(d, exponent, out=state._root)
-    loading = np.greater_equal(d, state.deepest, out=state.loading)
-    np.maximum(state.deepest, d, out=state.deepest)
-    np.copyto(state.deepest, 0.0, where=free)  # a new episode starts from zero depth
-    gain = state._gain
-    np.copyto(gain, kn_unloading)
-    np.copyto(gain, kn, where=loading)
-    fn = np.multiply(hertz, gain, out=state.normal)
+        fn = np.power(d, law.exponent, out=state.normal)
+    fn *= state.factor                             # kn times the hysteresis factor
 
     # Anchor at first touch: tips that were free take their current position.
     np.copyto(state.anchor, x, where=was_free)
-    trial = np.subtract(state.anchor, x, out=state.trial)
-    trial *= kt                               # -kt (x - anchor)
-    cap = np.multiply(fn, mu, out=state.cap)
+    trial = np.subtract(state.anchor, x, out=state.trial)     # -(x - anchor)
+    stretch = np.abs(trial, out=state._s)
+    gain = state.shear_factor
+    _hysteresis(gain, stretch, state.stretch, law.kt_mean, law.kt_half, law.kt_rate)
+    trial *= gain                                              # -kt g (x - anchor)
+    cap = np.multiply(fn, law.mu, out=state.cap)
     ft = np.minimum(trial, cap, out=state.tangential)
     np.maximum(ft, np.negative(cap, out=state._d), out=ft)
-    # Sticking tips keep their anchor (x + Ft / kt equals it); slipping tips drag it so that the
-    # spring holds exactly mu Fn; free tips get Ft = 0 and take a new anchor when they touch.
-    np.multiply(ft, inv_kt, out=state.anchor)
-    state.anchor += x
+    # Sticking tips keep their anchor (x + Ft / (kt g) equals it); slipping tips drag it so that
+    # the spring holds exactly mu Fn; free tips get Ft = 0 and take a new anchor when they touch.
+    # The stretch remembered for the next rate is the spring's after the slip, not the trial's.
+    offset = np.divide(ft, gain, out=state.anchor)
+    np.abs(offset, out=state.stretch)
+    offset += x
     state.free = free
     return fn, ft

@@ -19,7 +19,7 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from .contact import ContactState, contact_step
+from .contact import ContactLaw, ContactState, contact_step
 from .kinematics import TipTable, check_no_interference
 from .params import ParameterError, RobotParams, Scenario
 
@@ -39,14 +39,14 @@ def tip_table(robot: RobotParams) -> TipTable:
 
 @dataclass
 class Trajectory:
-    """Recorded states of S scenarios: t (n,), q (n, S, 6) with columns x, y, theta, vx, vy, w."""
+    """Recorded states of S scenarios: t (n,), q (n, S, 6) with columns x, y, theta, vx, vy, w;
+    with ``contacts=True`` also the per-tip normal and tangential forces (n, S, P), N."""
 
     t: np.ndarray
     q: np.ndarray
     scenarios: Sequence[Scenario]
-
-    def single(self, index: int = 0) -> 'Trajectory':
-        return Trajectory(self.t, self.q[:, index:index + 1], [self.scenarios[index]])
+    normal: Optional[np.ndarray] = None
+    tangential: Optional[np.ndarray] = None
 
     @property
     def x(self):
@@ -101,30 +101,28 @@ class Simulator:
                                      'run; start a new simulation')
         self.scenarios = list(scenarios)
 
-        def column(get):
-            return np.array([[get(s)] for s in scenarios], dtype=float)
-
         cond = [s.scenario for s in scenarios]
         tips = self.table.count
 
-        def full(get):
-            """One value per scenario, broadcast to (S, P) once: same-shape operands are 2-3x
-            faster in the 1 kHz loop than an (S, 1) column broadcast at every step."""
-            return np.repeat(np.array([[get(s)] for s in scenarios], dtype=float), tips, axis=1)
+        def per_scenario(get):
+            """A scalar where every scenario agrees (sweeps vary one or two parameters: scalar
+            operands are the cheapest), else one value per scenario broadcast to (S, P) once (a
+            same-shape operand is 2-3x faster than an (S, 1) column broadcast at every step)."""
+            values = np.array([get(s) for s in scenarios], dtype=float)
+            if np.all(values == values[0]):
+                return float(values[0])
+            return np.repeat(values[:, None], tips, axis=1)
 
-        kn = full(lambda s: s.surface.normal_stiffness)
-        self._kn = kn
-        self._kn_unloading = kn * full(lambda s: s.surface.restitution)
-        exponents = {s.surface.hertz_exponent for s in scenarios}
-        self._exponent = exponents.pop() if len(exponents) == 1 else full(
-            lambda s: s.surface.hertz_exponent)
-        self._kt = full(lambda s: s.surface.tangential_stiffness)
-        self._inv_kt = 1.0 / self._kt
-        self._mu = full(lambda s: s.surface.friction_coefficient)
-        self._max_penetration = full(lambda s: s.surface.max_penetration)
+        surface = lambda name: per_scenario(lambda s: getattr(s.surface, name))  # noqa: E731
+        self.law = ContactLaw.from_values(
+            kn=surface('normal_stiffness'), kt=surface('tangential_stiffness'),
+            mu=surface('friction_coefficient'), exponent=surface('hertz_exponent'),
+            restitution=surface('restitution'), hysteresis_speed=surface('hysteresis_speed'),
+            dt=self.dt)
+        self._max_penetration = np.array([s.surface.max_penetration for s in scenarios])
         self._max_penetration_any = float(self._max_penetration.min())
+        gap = np.array([[s.scenario.gap] for s in scenarios])
         side = self.table.side
-        gap = full(lambda s: s.scenario.gap)
         # penetration = side * (y - level): top surface at y = gap, bottom at y = 0.
         self._level = np.where(side > 0, gap, 0.0) * side           # (S, P)
         self._side = side
@@ -165,8 +163,7 @@ class Simulator:
         pen = np.add(by, q[1, :, None], out=self.penetration)
         pen *= self._side
         pen -= self._level
-        fn, ft = contact_step(contacts, pen, x, self._kn, self._kn_unloading, self._exponent,
-                              self._kt, self._inv_kt, self._mu)
+        fn, ft = contact_step(contacts, pen, x, self.law)
         forces = self._forces
         # Bottom tips push up (+y), top tips push down: Fy = -side Fn. Row sums as mat-vec
         # products: BLAS is several times faster than sum(axis=1) here.
@@ -203,7 +200,7 @@ class Simulator:
             raise DivergenceError(
                 f'simulation diverged at t = {t:.3f} s (scenario {i}): the state became '
                 f'non-finite; reduce integration.dt or soften the surfaces')
-        too_deep = self.penetration - self._max_penetration
+        too_deep = self.penetration - self._max_penetration[:, None]
         i, tip = np.unravel_index(np.argmax(too_deep), too_deep.shape)
         if too_deep[i, tip] > 0:
             n = self.table.count // 2
@@ -212,12 +209,13 @@ class Simulator:
                 f'simulation diverged at t = {t:.3f} s (scenario {i}): a tip of link {tip % n} '
                 f'pressed {self.penetration[i, tip] * 1000:.1f} mm into the {surface} surface, '
                 f'deeper than surface.max_penetration = '
-                f'{self._max_penetration[i, 0] * 1000:.1f} mm (the robot was pushed through the '
+                f'{self._max_penetration[i] * 1000:.1f} mm (the robot was pushed through the '
                 f'surface: check the slope, resisting force and stiffness, or reduce '
                 f'integration.dt)')
 
     def run(self, duration: float, record_every: int = 1,
-            progress: Optional[Callable[[int], None]] = None) -> Trajectory:
+            progress: Optional[Callable[[int], None]] = None,
+            contacts: bool = False) -> Trajectory:
         """Step for ``duration`` seconds, recording the state every ``record_every`` steps.
 
         ``progress(n)`` is called with the number of steps done since the last call.
@@ -226,6 +224,9 @@ class Simulator:
         n_rec = steps // record_every + 1
         t = np.empty(n_rec)
         q = np.empty((n_rec, self.count, 6))
+        shape = (n_rec, self.count, self.table.count)
+        fn = np.zeros(shape) if contacts else None
+        ft = np.zeros(shape) if contacts else None
         t[0], q[0] = self.t, self.q.T
         chunk = max(1, steps // 200)
         for k in range(1, steps + 1):
@@ -234,17 +235,20 @@ class Simulator:
                 j = k // record_every
                 t[j] = self.t
                 q[j] = self.q.T
+                if contacts:
+                    fn[j] = self.contacts.normal
+                    ft[j] = self.contacts.tangential
             if progress is not None and k % chunk == 0:
                 progress(chunk)
         if progress is not None and steps % chunk:
             progress(steps % chunk)
-        return Trajectory(t, q, self.scenarios)
+        return Trajectory(t, q, self.scenarios, fn, ft)
 
 
 def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[float] = None,
-             record_every: int = 1, progress=None) -> Trajectory:
+             record_every: int = 1, progress=None, contacts: bool = False) -> Trajectory:
     """Run scenario(s) from the initial state for ``duration`` (default: integration.duration)."""
     sim = Simulator(scenario)
     if duration is None:
         duration = sim.scenarios[0].integration.duration
-    return sim.run(duration, record_every, progress)
+    return sim.run(duration, record_every, progress, contacts)

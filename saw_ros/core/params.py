@@ -30,8 +30,8 @@ def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
 
 def _range_text(meta: Dict[str, Any]) -> str:
     low, high = meta['low'], meta['high']
-    left = '(' if meta['low_open'] else '['
-    right = ')' if meta['high_open'] else ']'
+    left = '(' if meta['low_open'] or meta['low'] is None else '['
+    right = ')' if meta['high_open'] or meta['high'] is None else ']'
     lo = '-inf' if low is None else f'{low:g}'
     hi = 'inf' if high is None else f'{high:g}'
     unit = f' {meta["unit"]}' if meta['unit'] else ''
@@ -147,8 +147,12 @@ class SurfaceParams(_Validated):
     tangential_stiffness: float = spec(1082.0, 'N/m', 'tangential stiffness kt of the surface', 0.0,
                                        None, low_open=True)
     friction_coefficient: float = spec(1.0, '', 'Coulomb coefficient of friction mu', 0.0, 5.0)
-    restitution: float = spec(0.9, '', 'coefficient of restitution e: unloading force factor', 0.0,
+    restitution: float = spec(0.9, '', 'coefficient of restitution e: share of the stored energy a '
+                              'tip gets back when it unloads', 0.0,
                               1.0, low_open=True)
+    hysteresis_speed: float = spec(0.01, 'm/s', 'deformation rate over which the force '
+                                   'factor passes from e (unloading) to 1 (loading)', 0.0, None,
+                                   low_open=True)
     max_penetration: float = spec(0.015, 'm',
                                   'deepest a tip can physically press into a surface; deeper '
                                   'means the simulation diverged', 0.0, None, low_open=True)

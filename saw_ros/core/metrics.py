@@ -1,0 +1,130 @@
+"""Outputs of a run (paper Section 5): v_theory, mean velocity, AR, CCI and steady state.
+
+Pure functions of sampled signals, so that the simulator's 1 kHz ground truth and the tracker's
+60 fps estimates go through the same code.
+
+CCI(t) = |v(t) - v(t + T)| / |v_avg|, T = 1/f: how much a velocity differs from itself one wave
+cycle later (the paper's "cyclic convergence index"). For the forward velocity v_avg is its
+steady mean. The normal and pitch velocities average to about zero, which would make the index
+meaningless, so they are scaled by their RMS over the steady part instead (our choice; the paper
+does not say).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Optional
+
+import numpy as np
+
+from .kinematics import v_theory
+
+STEADY_CCI = 0.02   # the paper's first convergence threshold (2 %)
+
+
+def _cycle_samples(t: np.ndarray, frequency: float) -> int:
+    if frequency <= 0:
+        raise ValueError('CCI needs a wave frequency above 0')
+    dt = float(np.median(np.diff(t)))
+    return max(1, int(round(1.0 / (frequency * dt))))
+
+
+def cci(t, v, frequency: float, scale: Optional[float] = None):
+    """(t[:-n], CCI) with n samples per cycle; ``scale`` defaults to |mean v| over the last
+    two cycles (the steady part of a run that converged)."""
+    t = np.asarray(t, float)
+    v = np.asarray(v, float)
+    n = _cycle_samples(t, frequency)
+    if len(v) <= n:
+        return t[:0], v[:0]
+    if scale is None:
+        scale = abs(float(np.mean(v[-2 * n:])))
+    diff = np.abs(v[n:] - v[:-n])
+    return t[:-n], diff / max(scale, 1e-12)
+
+
+def rms_scale(v, t, frequency: float) -> float:
+    n = _cycle_samples(np.asarray(t, float), frequency)
+    tail = np.asarray(v, float)[-2 * n:]
+    return float(np.sqrt(np.mean(tail ** 2)))
+
+
+def settling_time(t, index, threshold: float) -> Optional[float]:
+    """First time after which the index stays below ``threshold`` to the end (None: never)."""
+    index = np.asarray(index)
+    if len(index) == 0:
+        return None
+    above = np.nonzero(index >= threshold)[0]
+    if len(above) == 0:
+        return float(t[0])
+    last = above[-1]
+    if last + 1 >= len(index):
+        return None
+    return float(t[last + 1])
+
+
+def steady_state_start(t, v, frequency: float, threshold: float = STEADY_CCI,
+                       min_cycles: float = 1.0) -> Optional[float]:
+    """Start of steady state: CCI of the forward velocity stays under ``threshold`` from there on,
+    with at least ``min_cycles`` cycles of evidence after it. None while not steady."""
+    tc, index = cci(t, v, frequency)
+    start = settling_time(tc, index, threshold)
+    if start is None or len(tc) == 0 or tc[-1] - start < min_cycles / frequency - 1e-9:
+        return None
+    return start
+
+
+def mean_velocity(t, x, start: float, frequency: float) -> float:
+    """Mean velocity from ``start`` over a whole number of wave cycles (to cancel the ripple)."""
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    span = t[-1] - start
+    if frequency > 0 and span * frequency >= 1.0:
+        span = math.floor(span * frequency + 1e-9) / frequency
+    i0 = int(np.searchsorted(t, start - 1e-12))
+    i1 = int(np.searchsorted(t, start + span - 1e-9))
+    i1 = min(i1, len(t) - 1)
+    if i1 <= i0:
+        raise ValueError('need at least two samples after the start to measure a velocity')
+    return float((x[i1] - x[i0]) / (t[i1] - t[i0]))
+
+
+@dataclass
+class RunMetrics:
+    """What a run measured; SI units (m/s, s)."""
+
+    frequency: float
+    v_theory: float
+    v_mean: float
+    advance_ratio: float
+    steady_from: Optional[float]        # s, CCI of vx under 2 % from here on
+    cci_2pct_after: Optional[float]     # s, every velocity's CCI under 2 %
+    cci_02pct_after: Optional[float]    # s, every velocity's CCI under 0.2 %
+
+    def as_dict(self):
+        return asdict(self)
+
+
+def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0) -> RunMetrics:
+    """Metrics of one recorded run: t (n,), q (n, 6) = x, y, theta, vx, vy, w.
+
+    The mean velocity is taken from the steady-state start (or from the middle of the run if it
+    never settled, flagged by steady_from = None) to the end over whole cycles.
+    """
+    t = np.asarray(t, float)
+    q = np.asarray(q, float)
+    vth = v_theory(robot, frequency)
+    if frequency <= 0:
+        v = mean_velocity(t, q[:, 0], t[0], 0.0)
+        return RunMetrics(frequency, vth, v, float('nan'), None, None, None)
+    start = steady_state_start(t, q[:, 3], frequency, min_cycles=min_cycles)
+    v = mean_velocity(t, q[:, 0], start if start is not None else t[len(t) // 2], frequency)
+    settled = {}
+    for threshold in (0.02, 0.002):
+        times = []
+        for col in (3, 4, 5):
+            scale = None if col == 3 else rms_scale(q[:, col], t, frequency)
+            tc, index = cci(t, q[:, col], frequency, scale)
+            times.append(settling_time(tc, index, threshold))
+        settled[threshold] = None if None in times else max(times)
+    return RunMetrics(frequency, vth, v, v / vth, start, settled[0.02], settled[0.002])
