@@ -82,6 +82,7 @@ class Simulator:
         self._forces = np.zeros((3, self.count))
         self._rot = np.zeros((self.count, 1), complex)
         self._body = np.zeros((self.count, tips), complex)
+        self._gathered = np.zeros((self.count, tips), complex)
         self._x = np.zeros((self.count, tips))                 # world tip abscissae, m
         self._work = np.zeros((self.count, tips))
         self._ones = np.ones(tips)
@@ -154,8 +155,9 @@ class Simulator:
         table, contacts, q = self.table, self.contacts, self.q
         u = self.phase * table.scale
         i = u.astype(np.intp)
-        body = np.multiply(table.slopes[i], (u - i)[:, None], out=self._body)
-        body += table.points[i]                                  # tips in the body frame
+        body = np.take(table.slopes, i, axis=0, out=self._body)
+        body *= (u - i)[:, None]
+        body += np.take(table.points, i, axis=0, out=self._gathered)   # tips in the body frame
         np.exp(1j * q[2], out=self._rot[:, 0])
         body *= self._rot                                        # rotated offsets from the COM
         bx, by = body.real, body.imag
@@ -245,10 +247,37 @@ class Simulator:
         return Trajectory(t, q, self.scenarios, fn, ft)
 
 
+def _run_chunk(job):
+    scenarios, duration, record_every, contacts = job
+    return Simulator(scenarios).run(duration, record_every, None, contacts)
+
+
 def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[float] = None,
-             record_every: int = 1, progress=None, contacts: bool = False) -> Trajectory:
-    """Run scenario(s) from the initial state for ``duration`` (default: integration.duration)."""
-    sim = Simulator(scenario)
+             record_every: int = 1, progress=None, contacts: bool = False,
+             workers: int = 1) -> Trajectory:
+    """Run scenario(s) from the initial state for ``duration`` (default: integration.duration).
+
+    ``workers`` > 1 splits a batch over that many processes (the scenarios are independent, so
+    the numbers are the same as in one process); ``progress`` is then called per finished part.
+    """
+    scenarios = [scenario] if isinstance(scenario, Scenario) else list(scenario)
     if duration is None:
-        duration = sim.scenarios[0].integration.duration
-    return sim.run(duration, record_every, progress, contacts)
+        duration = scenarios[0].integration.duration
+    workers = max(1, min(workers, len(scenarios) // 16))
+    if workers == 1:
+        return Simulator(scenarios).run(duration, record_every, progress, contacts)
+    import multiprocessing
+    bounds = np.linspace(0, len(scenarios), workers + 1).astype(int)
+    jobs = [(scenarios[a:b], duration, record_every, contacts)
+            for a, b in zip(bounds[:-1], bounds[1:])]
+    steps_per_job = [int(round(duration / scenarios[0].integration.dt))] * workers
+    # fork: the children inherit the imported modules and the kinematics table.
+    with multiprocessing.get_context('fork').Pool(workers) as pool:
+        parts = []
+        for part, steps in zip(pool.imap(_run_chunk, jobs), steps_per_job):
+            parts.append(part)
+            if progress is not None:
+                progress(steps)
+    cat = (lambda name: None if getattr(parts[0], name) is None else np.concatenate(
+        [getattr(p, name) for p in parts], axis=1))
+    return Trajectory(parts[0].t, cat('q'), scenarios, cat('normal'), cat('tangential'))
