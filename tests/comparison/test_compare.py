@@ -1,0 +1,69 @@
+import math
+
+import numpy as np
+import pytest
+
+from saw_ros.compare import RunComparator, find_reference, load_reference, reference_error
+from saw_ros.config import config_path
+from saw_ros.core import RobotParams, Scenario, simulate
+
+ROBOT = RobotParams()
+
+
+def feed_truth(comp, t, x, vx):
+    for row in zip(t, x, vx):
+        comp.add_truth(*row)
+
+
+def test_before_steady_state_it_says_so_not_a_number():
+    comp = RunComparator(ROBOT, 1.0)
+    assert comp.result().status == 'waiting for data'
+    t = np.arange(0, 0.5, 0.001)
+    feed_truth(comp, t, 0.05 * t, 0.05 + 0.02 * np.exp(-t / 0.2))
+    r = comp.result()
+    assert r.status == 'not steady yet' and math.isnan(r.ar_sim)
+
+
+def test_sim_and_tracked_ar_from_the_same_window_over_whole_cycles():
+    s = Scenario()
+    tr = simulate(s, 4.0)
+    q = tr.q[:, 0]
+    comp = RunComparator(s.robot, s.frequency)
+    feed_truth(comp, tr.t, q[:, 0], q[:, 3])
+    # A tracker 2 % slow, sampled at 60 Hz with a marker lost (NaN) now and then.
+    frames = np.arange(0, 4.0, 1 / 60)
+    tracked = 0.98 * np.interp(frames, tr.t, q[:, 0])
+    tracked[::17] = np.nan
+    for t, x in zip(frames, tracked):
+        comp.add_tracked(t, x)
+    r = comp.result()
+    assert r.steady and r.window_s >= 1.0 and r.window_s * r.frequency == pytest.approx(
+        round(r.window_s * r.frequency))
+    assert r.ar_sim == pytest.approx(0.754, abs=0.01)
+    assert r.relative_error == pytest.approx(0.02, abs=0.002)
+    assert r.v_tracked == pytest.approx(0.98 * r.v_sim, rel=0.003)
+
+
+def test_a_reset_of_simulated_time_starts_over():
+    comp = RunComparator(ROBOT, 1.0)
+    feed_truth(comp, [0.0, 0.001, 0.002], [0, 0, 0], [0, 0, 0])
+    comp.add_truth(0.0, 0.0, 0.0)
+    assert comp.truth.size == 1
+
+
+def test_the_papers_reference_points_ship_with_their_source():
+    points = load_reference(config_path('reference_paper.csv'))
+    assert len(points) == 3 and all('Section 6.4.1' in p.source for p in points)
+    p = find_reference(points, 20.0, 6.0)
+    assert p.speed == pytest.approx(0.068)
+    assert reference_error(p, 0.068, 0.1) == pytest.approx(0.0)
+    assert reference_error(p, 0.0748, 0.1) == pytest.approx(0.1)
+
+
+def test_bad_reference_files_are_refused_with_the_reason(tmp_path):
+    bad = tmp_path / 'bad.csv'
+    bad.write_text('slope,volts\n1,2\n')
+    with pytest.raises(ValueError, match='needs columns'):
+        load_reference(bad)
+    with pytest.raises(FileNotFoundError):
+        load_reference(tmp_path / 'missing.csv')
