@@ -4,7 +4,8 @@ counted messages, to test and benchmark the recorder without the simulator.
 Parameters: ``rate`` (Hz, for each 1 kHz-class topic), ``duration`` (s), ``streams`` (how many of
 clock, pose, twist, contacts, contact_wrench, joint_states: 0-6), ``image_fps`` (0: no images),
 ``image_width``/``image_height``, ``prefix`` (topic namespace, default ``/saw``; /clock is
-``<prefix>/clock`` unless ``prefix`` is /saw), ``start_delay`` (s to wait for subscribers).
+``<prefix>/clock`` unless ``prefix`` is /saw), ``wait_subscribers`` (start once every topic has this many subscriptions,
+at most 30 s), ``start_delay`` (s, after that).
 At the end it waits for reliable delivery, prints ``published <topic> <count>`` lines and exits.
 """
 from __future__ import annotations
@@ -38,7 +39,7 @@ class LoadGen(Node):
         p = {name: self.declare_parameter(name, default).value for name, default in (
             ('rate', 1000.0), ('duration', 3.0), ('streams', 6), ('image_fps', 0.0),
             ('image_width', 1280), ('image_height', 720), ('prefix', '/saw'),
-            ('start_delay', 1.0))}
+            ('start_delay', 0.0), ('wait_subscribers', 1))}
         self.p = p
         prefix = p['prefix'].rstrip('/')
         clock_topic = '/clock' if prefix == '/saw' else f'{prefix}/clock'
@@ -67,7 +68,13 @@ class LoadGen(Node):
 
     def run(self) -> None:
         p = self.p
-        time.sleep(p['start_delay'])  # discovery: the recorder subscribes to what it sees
+        from saw_ros.process import wait_for
+        pubs = [pub for _, pub, _ in self.streams] + ([self.image[1]] if self.image else [])
+        need = int(p['wait_subscribers'])
+        if need > 0 and not wait_for(
+                lambda: all(pub.get_subscription_count() >= need for pub in pubs), 30.0):
+            self.get_logger().warn('not every topic has a subscriber; publishing anyway')
+        time.sleep(p['start_delay'])
         period = 1.0 / p['rate'] if p['rate'] > 0 else None
         image_period = 1.0 / p['image_fps'] if self.image else None
         start = time.monotonic()
