@@ -69,7 +69,8 @@ class ManagedProcess:
         return self.proc.poll()
 
     def output(self) -> str:
-        self._log.flush()
+        if not self._log.closed:    # still readable after wait()/stop() closed the log
+            self._log.flush()
         return self.log_path.read_text(errors='replace')
 
     def signal(self, sig: int) -> None:

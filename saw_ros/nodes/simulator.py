@@ -8,10 +8,16 @@ Time. A wall-clock timer wakes the node every few milliseconds; each wake-up run
 as are due at ``real_time_factor`` (steps = rtf * elapsed wall time / dt), not one step per tick:
 rclpy does not catch up missed timer ticks. When the machine cannot keep up the simulation falls
 behind real time (never skipping or repeating a step) and says so, at most every few seconds.
-``real_time_factor`` 0 runs as fast as possible. Either way a wake-up works for at most
-``BATCH_BUDGET`` of wall time so that parameter changes and ~/reset are served in between, and
-after each batch the node waits (bounded) until reliable subscribers have acknowledged what it
-sent, so that a fast simulation does not overrun their queues.
+``real_time_factor`` 0 runs as fast as the node can step and publish. Either way a wake-up
+works for at most ``BATCH_BUDGET`` of wall time (and ``MAX_BATCH`` steps) so that parameter
+changes and ~/reset are served in between.
+
+Loss. The node publishes every step once, in order, reliably. Reliable KEEP_LAST queues do not
+slow the publisher down, though: a subscriber that cannot keep up with the rate (rtf x 6000
+messages/s) loses the oldest messages of its queue. Publisher acknowledgements cannot prevent
+that (a KEEP_LAST reader acknowledges what it then drops, and Fast DDS acknowledges in bursts,
+0-2 s late), so there is no back-pressure: pick a real_time_factor the subscribers sustain
+(``saw-ros bench`` measures it), not 0, when every message must arrive.
 
 Reset. ``~/reset`` puts the robot back in its initial state (centred in the gap, at rest, phase 0,
 no contact memory) with the current parameters; simulated time goes on (stamps and /clock never
@@ -41,8 +47,8 @@ from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node
 
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
-MAX_BATCH = 100              # steps per wake-up, below the streams' queue depth (200)
-ACK_TIMEOUT = 1.0            # s to wait for subscribers' acknowledgements after a batch
+MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
+FLUSH_TIMEOUT = 1.0          # s to wait, at exit, for subscribers to acknowledge the last steps
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
 WARN_EVERY = 5.0             # s of wall time between "falling behind" warnings
 
@@ -213,8 +219,6 @@ class SimulatorNode(Node):
             self.step_and_publish()
             if time.monotonic() > deadline:
                 break
-        if todo > 0:
-            self._wait_for_subscribers(ACK_TIMEOUT)
         if end >= 0 and self.steps >= end:
             self.finished = True
             self.get_logger().info(f'duration {self._duration:g} s reached after {self.steps} '
@@ -233,12 +237,13 @@ class SimulatorNode(Node):
             self._last_warning = now
             self._behind_since_warning = 0
 
-    def _wait_for_subscribers(self, timeout: float) -> None:
-        """Bounded back-pressure: reliable subscribers acknowledge what we sent before the next
-        batch (immediate when there are none or they keep up)."""
-        limit = Duration(seconds=timeout)
+    def _flush(self, timeout: float) -> None:
+        """Give reliable subscribers up to ``timeout`` s in all to acknowledge the last steps."""
+        deadline = time.monotonic() + timeout
         for pub in self._publishers_all:
-            pub.wait_for_all_acked(limit)
+            left = deadline - time.monotonic()
+            if left <= 0 or not pub.wait_for_all_acked(Duration(seconds=left)):
+                break
 
     def step_and_publish(self) -> None:
         """One physics step, then its six messages, all stamped (steps + 1) * dt."""
@@ -274,7 +279,7 @@ class SimulatorNode(Node):
     def close(self) -> None:
         """Before exiting: let subscribers receive the last steps (bounded)."""
         try:
-            self._wait_for_subscribers(2.0)
+            self._flush(FLUSH_TIMEOUT)
         except Exception:  # noqa: BLE001  (shutting down: the context may already be gone)
             pass
 
