@@ -22,6 +22,7 @@ import datetime
 import importlib
 import os
 import queue
+import sys
 import threading
 import time
 from typing import Dict, List
@@ -273,8 +274,11 @@ class Recorder(Node):
         self._writer.join()
         self.bag.close()
         counts = ', '.join(f'{t}: {n}' for t, n in self._counts().items())
-        self.get_logger().info(f'bag {self.bag.directory} finished: {self.bag.message_count} '
-                               f'messages ({counts})')
+        done = f'bag {self.bag.directory} finished: {self.bag.message_count} messages ({counts})'
+        if self.context.ok():
+            self.get_logger().info(done)
+        else:  # after Ctrl-C the context is gone and /rosout with it
+            print(f'[recorder] {done}', file=sys.stderr, flush=True)
         if self._write_error is not None:
             self.get_logger().error(f'writing failed: {self._write_error}')
         if self._large is not None:
