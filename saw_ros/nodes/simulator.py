@@ -35,6 +35,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from std_srvs.srv import Trigger
@@ -48,6 +49,19 @@ from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
 MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
+# Publishers keep the contract's policies (STREAM_QOS, CLOCK_QOS: reliable, volatile) with a
+# deeper history, 1000 = 1 s at 1 kHz: a reliable reader that falls behind can only be repaired
+# from the writer's history, and Clock, a plain type, is handed to same-host readers straight
+# from it (Fast DDS data sharing), so a reader further behind than the writer's depth loses
+# /clock ticks however deep its own queue is. (Depth does not affect QoS compatibility.)
+PUBLISHER_DEPTH = 1000
+
+
+def deeper(qos: QoSProfile, depth: int = PUBLISHER_DEPTH) -> QoSProfile:
+    return QoSProfile(history=qos.history, depth=depth, reliability=qos.reliability,
+                      durability=qos.durability)
+
+
 FLUSH_TIMEOUT = 1.0          # s to wait, at exit, for subscribers to acknowledge the last steps
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
 WARN_EVERY = 5.0             # s of wall time between "falling behind" warnings
@@ -97,12 +111,13 @@ class SimulatorNode(Node):
         self._joints = conv.JointTable(scenario.robot)
         self._joint_names = conv.joint_names(scenario.robot.wave_links)
 
-        self._pub_clock = self.create_publisher(Clock, '/clock', CLOCK_QOS)
-        self._pub_pose = self.create_publisher(PoseStamped, '/saw/pose', STREAM_QOS)
-        self._pub_twist = self.create_publisher(TwistStamped, '/saw/twist', STREAM_QOS)
-        self._pub_contacts = self.create_publisher(PointCloud2, '/saw/contacts', STREAM_QOS)
-        self._pub_wrench = self.create_publisher(WrenchStamped, '/saw/contact_wrench', STREAM_QOS)
-        self._pub_joints = self.create_publisher(JointState, '/saw/joint_states', STREAM_QOS)
+        self._pub_clock = self.create_publisher(Clock, '/clock', deeper(CLOCK_QOS))
+        stream = deeper(STREAM_QOS)
+        self._pub_pose = self.create_publisher(PoseStamped, '/saw/pose', stream)
+        self._pub_twist = self.create_publisher(TwistStamped, '/saw/twist', stream)
+        self._pub_contacts = self.create_publisher(PointCloud2, '/saw/contacts', stream)
+        self._pub_wrench = self.create_publisher(WrenchStamped, '/saw/contact_wrench', stream)
+        self._pub_joints = self.create_publisher(JointState, '/saw/joint_states', stream)
         self._publishers_all = (self._pub_clock, self._pub_pose, self._pub_twist,
                                 self._pub_contacts, self._pub_wrench, self._pub_joints)
         # Reused messages: filling is cheaper than building nested Python objects at 1 kHz.

@@ -1,0 +1,147 @@
+"""Simulator node throughput: the highest real-time factor it sustains with zero lost messages.
+
+For each real_time_factor of a ladder, the simulator node runs ``duration`` of simulated time (60 s;
+10 s with --quick) as a subprocess, and ONE subscriber process takes every topic (/clock and the
+five /saw streams; reliable, a 1000-message queue (1 s at 1 kHz) as a recorder would use, raw
+CDR as rosbag2 records it). The subscriber counts every stamp of every topic:
+lost = expected - received in-order unique stamps. A factor is sustained when nothing is lost and
+the simulated time advanced at least 97 % as fast as asked. The ladder stops at the first factor
+that fails; ``sim_max_realtime_factor`` is the last one sustained (0 if even the first fails),
+``sim_lost_messages`` the messages lost at real_time_factor 1.0.
+
+Both processes and the bench share a 2-core machine with whatever else runs: figures are noisy.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+KEYS = ('sim_max_realtime_factor', 'sim_lost_messages')
+SUBSCRIBER_DEPTH = 1000     # 1 s at 1 kHz: rides out the scheduling hiccups of a shared machine
+LADDER = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
+TOPICS = {
+    '/clock': ('rosgraph_msgs.msg', 'Clock'),
+    '/saw/pose': ('geometry_msgs.msg', 'PoseStamped'),
+    '/saw/twist': ('geometry_msgs.msg', 'TwistStamped'),
+    '/saw/contacts': ('sensor_msgs.msg', 'PointCloud2'),
+    '/saw/contact_wrench': ('geometry_msgs.msg', 'WrenchStamped'),
+    '/saw/joint_states': ('sensor_msgs.msg', 'JointState'),
+}
+
+
+def subscriber(steps: int, timeout: float) -> int:
+    """Child process: subscribe to every topic, count stamps, print one JSON line, exit."""
+    import importlib
+    import struct
+
+    import rclpy
+    from rclpy.node import Node
+
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    rclpy.init()
+    node = Node('bench_subscriber')
+    unpack = struct.Struct('<iI').unpack_from
+    step_ns = 1_000_000
+    state = {t: {'count': 0, 'last': 0, 'bad': 0, 'first': 0, 'gaps': 0} for t in TOPICS}
+    wall = {'first': None, 'last': None}
+
+    def make_callback(topic):
+        s = state[topic]
+
+        def callback(raw):
+            sec, nanosec = unpack(raw, 4)
+            stamp = sec * 1_000_000_000 + nanosec
+            if stamp > s['last']:
+                s['count'] += 1
+                if s['first'] == 0:
+                    s['first'] = stamp // step_ns
+                elif stamp - s['last'] != step_ns:
+                    s['gaps'] += 1
+            else:
+                s['bad'] += 1          # a repeat or a step out of order
+            s['last'] = stamp
+            now = time.monotonic()
+            if wall['first'] is None:
+                wall['first'] = now
+            wall['last'] = now
+        return callback
+
+    for topic, (module, name) in TOPICS.items():
+        cls = getattr(importlib.import_module(module), name)
+        qos = QoSProfile(depth=SUBSCRIBER_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+        node.create_subscription(cls, topic, make_callback(topic), qos, raw=True)
+    end = steps * step_ns
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if all(s['last'] >= end for s in state.values()):
+                break
+            if wall['last'] is not None and time.monotonic() - wall['last'] > 3.0:
+                break                  # the publisher is gone
+    except KeyboardInterrupt:
+        pass
+    span = (wall['last'] - wall['first']) if wall['first'] is not None else 0.0
+    lost = sum(steps - s['count'] for s in state.values())
+    print(json.dumps({'lost': lost, 'bad': sum(s['bad'] for s in state.values()),
+                      'received': sum(s['count'] for s in state.values()),
+                      'achieved_rtf': (steps - 1) * 1e-3 / span if span > 0 else 0.0,
+                      'per_topic': {t: (s['count'], s['first'], s['gaps'])
+                                    for t, s in state.items()}}), flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+def measure(rtf: float, duration: float, log_dir: Path) -> dict:
+    """One rung: simulator + subscriber processes in a private domain."""
+    from ..process import ManagedProcess, isolated_ros_env, node_command
+    env = isolated_ros_env()
+    steps = int(round(duration * 1000))
+    timeout = duration / rtf * 3 + 30
+    sub = ManagedProcess(f'subscriber_{rtf:g}', [sys.executable, '-m', __name__, '--subscriber',
+                                                  str(steps), str(timeout)], env, log_dir)
+    sim = ManagedProcess(f'simulator_{rtf:g}', node_command('simulator', params={
+        'real_time_factor': float(rtf), 'duration': float(duration), 'wait_for_subscribers': 1}),
+        env, log_dir)
+    try:
+        sim_code = sim.wait(timeout=timeout)
+        sub.wait(timeout=30)
+    finally:
+        for proc in (sim, sub):
+            if proc.returncode is None:
+                proc.stop(timeout=5)
+    result = {'rtf': rtf, 'simulator_exit': sim_code}
+    for line in sub.output().splitlines():
+        if line.startswith('{'):
+            result.update(json.loads(line))
+    result.setdefault('lost', 6 * steps)
+    result['behind_warnings'] = sim.output().count('falling behind')
+    result['sustained'] = (sim_code == 0 and result['lost'] == 0 and result.get('bad', 1) == 0
+                           and result.get('achieved_rtf', 0.0) >= 0.97 * rtf)
+    return result
+
+
+def run(quick: bool = False) -> dict:
+    duration = 10.0 if quick else 60.0
+    best, lost_at_1 = 0.0, None
+    with tempfile.TemporaryDirectory(prefix='saw_bench_sim_') as tmp:
+        for rtf in LADDER:
+            result = measure(rtf, duration, Path(tmp))
+            print(f'bench simulator_node: {json.dumps(result)}', file=sys.stderr)
+            if rtf == 1.0:
+                lost_at_1 = result['lost']
+            if not result['sustained']:
+                break
+            best = rtf
+    return {'sim_max_realtime_factor': best, 'sim_lost_messages': lost_at_1}
+
+
+if __name__ == '__main__':
+    if len(sys.argv) == 4 and sys.argv[1] == '--subscriber':
+        raise SystemExit(subscriber(int(sys.argv[2]), float(sys.argv[3])))
+    print(json.dumps(run(quick='--quick' in sys.argv)))
