@@ -29,10 +29,9 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
 import rclpy
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -120,10 +119,8 @@ class SimulatorNode(Node):
         self._pub_joints = self.create_publisher(JointState, '/saw/joint_states', stream)
         self._publishers_all = (self._pub_clock, self._pub_pose, self._pub_twist,
                                 self._pub_contacts, self._pub_wrench, self._pub_joints)
-        # Reused messages: filling is cheaper than building nested Python objects at 1 kHz.
-        self._msg_clock, self._msg_pose, self._msg_twist = Clock(), PoseStamped(), TwistStamped()
-        self._msg_cloud, self._msg_wrench = PointCloud2(), WrenchStamped()
-        self._msg_joints = JointState()
+        self._contacts_cdr = conv.ContactsCdr()
+        self._joints_cdr = conv.JointStateCdr(self._joint_names)
 
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -282,14 +279,14 @@ class SimulatorNode(Node):
                                      contacts.slipping[0])
         fx, fy, mz = conv.contact_wrench(points, x, y, theta)
         angles, rates = self._joints.at(float(sim.phase[0]), self._omega)
-        self._pub_clock.publish(conv.clock_msg(ns, self._msg_clock))
-        self._pub_pose.publish(conv.pose_msg(x, y, theta, ns, self._msg_pose))
-        self._pub_twist.publish(conv.twist_msg(vx, vy, w, ns, self._msg_twist))
-        self._pub_contacts.publish(conv.contacts_msg(points, ns, self._msg_cloud))
-        self._pub_wrench.publish(conv.wrench_msg(fx, fy, mz, ns, self._msg_wrench))
-        self._pub_joints.publish(conv.joint_state_msg(
-            self._joint_names, float(sim.phase[0]), self._omega, angles, rates, ns,
-            self._msg_joints))
+        # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
+        self._pub_clock.publish(conv.clock_cdr(ns))
+        self._pub_pose.publish(conv.pose_cdr(x, y, theta, ns))
+        self._pub_twist.publish(conv.twist_cdr(vx, vy, w, ns))
+        self._pub_contacts.publish(self._contacts_cdr(points, ns))
+        self._pub_wrench.publish(conv.wrench_cdr(fx, fy, mz, ns))
+        self._pub_joints.publish(self._joints_cdr(float(sim.phase[0]), self._omega, angles,
+                                                  rates, ns))
 
     def close(self) -> None:
         """Before exiting: let subscribers receive the last steps (bounded)."""
