@@ -22,30 +22,30 @@ from .kinematics import v_theory
 STEADY_CCI = 0.02   # the paper's first convergence threshold (2 %)
 
 
-def _cycle_samples(t: np.ndarray, frequency: float) -> int:
-    if frequency <= 0:
-        raise ValueError('CCI needs a wave frequency above 0')
-    dt = float(np.median(np.diff(t)))
-    return max(1, int(round(1.0 / (frequency * dt))))
-
-
 def cci(t, v, frequency: float, scale: Optional[float] = None):
-    """(t[:-n], CCI) with n samples per cycle; ``scale`` defaults to |mean v| over the last
-    two cycles (the steady part of a run that converged)."""
+    """(times, CCI) for every sample with a full cycle after it; ``scale`` defaults to |mean v|
+    over the last two cycles (the steady part of a run that converged).
+
+    v(t + T) is interpolated in time, so samples may be irregular or missing (a subscriber that
+    lost messages, a tracker that lost a frame).
+    """
     t = np.asarray(t, float)
     v = np.asarray(v, float)
-    n = _cycle_samples(t, frequency)
-    if len(v) <= n:
+    if frequency <= 0:
+        raise ValueError('CCI needs a wave frequency above 0')
+    period = 1.0 / frequency
+    usable = t <= t[-1] - period + 1e-9 if len(t) else t.astype(bool)
+    if not usable.any():
         return t[:0], v[:0]
     if scale is None:
-        scale = abs(float(np.mean(v[-2 * n:])))
-    diff = np.abs(v[n:] - v[:-n])
-    return t[:-n], diff / max(scale, 1e-12)
+        scale = abs(float(np.mean(v[t >= t[-1] - 2 * period])))
+    later = np.interp(t[usable] + period, t, v)
+    return t[usable], np.abs(later - v[usable]) / max(scale, 1e-12)
 
 
 def rms_scale(v, t, frequency: float) -> float:
-    n = _cycle_samples(np.asarray(t, float), frequency)
-    tail = np.asarray(v, float)[-2 * n:]
+    t = np.asarray(t, float)
+    tail = np.asarray(v, float)[t >= t[-1] - 2.0 / frequency]
     return float(np.sqrt(np.mean(tail ** 2)))
 
 
