@@ -42,7 +42,7 @@ def descriptor(name: str, value, meta: Dict) -> ParameterDescriptor:
     return desc
 
 
-def _accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> None:
+def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> None:
     """``-p scenario.slope:=0`` or ``slope: 0`` in YAML arrive as INTEGER overrides, which rclpy
     refuses for a DOUBLE parameter: turn them into doubles before declaring."""
     overrides = getattr(node, '_parameter_overrides', None)
@@ -74,7 +74,7 @@ class ScenarioParameters:
         exclude = set(exclude)
         entries = [(n, v, m) for n, v, m in base.describe() if n not in exclude]
         self.names: Tuple[str, ...] = tuple(n for n, _, _ in entries)
-        _accept_integers_for_doubles(node, self.names, {n: v for n, v, _ in entries})
+        accept_integers_for_doubles(node, self.names, {n: v for n, v, _ in entries})
         declared = node.declare_parameters('', [(n, v, descriptor(n, v, m))
                                                 for n, v, m in entries])
         # Validate the start-up values (YAML, -p) as a whole: the Scenario checks every range and

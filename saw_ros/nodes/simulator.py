@@ -33,6 +33,7 @@ import rclpy
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
@@ -42,7 +43,7 @@ from std_srvs.srv import Trigger
 from .. import conversions as conv
 from ..core.dynamics import DivergenceError, Simulator
 from ..core.params import ParameterError
-from ..ros_params import ScenarioParameters
+from ..ros_params import ScenarioParameters, accept_integers_for_doubles
 from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node
 
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
@@ -84,28 +85,32 @@ class SimulatorNode(Node):
             self.params = ScenarioParameters(self, exclude=EXCLUDED, frozen=FROZEN,
                                              on_change=self._on_scenario)
             self.sim = Simulator(self.params.scenario)
-        except ParameterError as exc:
+            accept_integers_for_doubles(self, ('real_time_factor', 'duration'),
+                                        {'real_time_factor': 1.0, 'duration': 0.0})
+            self.declare_parameter('real_time_factor', 1.0, ParameterDescriptor(
+                description='simulated seconds per wall-clock second; 0 = as fast as possible',
+                additional_constraints='>= 0'))
+            self.declare_parameter('duration', 0.0, ParameterDescriptor(
+                description='simulated time after which the node exits by itself (code 0), s; '
+                            '0 = run until stopped', additional_constraints='>= 0'))
+            self.declare_parameter('wait_for_subscribers', 0, ParameterDescriptor(
+                description='before the first step, wait until every topic has at least this '
+                            'many subscribers (tests, benchmarks, recordings that must see every '
+                            'step); 0 = start at once', additional_constraints='>= 0'))
+            self._rtf = self._check_rtf(self.get_parameter('real_time_factor').value)
+            self._duration = self._check_duration(self.get_parameter('duration').value)
+            self.dt_ns = conv.dt_nanoseconds(self.params.scenario.integration.dt)
+        except (ParameterError, ParameterException, ValueError) as exc:
+            # ParameterException: rclpy refused a start-up value (wrong type, outside the
+            # descriptor's range) before the Scenario could check it.
             raise NodeFailure(f'invalid parameters: {exc}') from exc
-        self.declare_parameter('real_time_factor', 1.0, ParameterDescriptor(
-            description='simulated seconds per wall-clock second; 0 = as fast as possible',
-            additional_constraints='>= 0'))
-        self.declare_parameter('duration', 0.0, ParameterDescriptor(
-            description='simulated time after which the node exits by itself (code 0), s; '
-                        '0 = run until stopped', additional_constraints='>= 0'))
-        self.declare_parameter('wait_for_subscribers', 0, ParameterDescriptor(
-            description='before the first step, wait until every topic has at least this many '
-                        'subscribers (tests, benchmarks, recordings that must see every step); '
-                        '0 = start at once', additional_constraints='>= 0'))
         self._wait_subscribers = int(self.get_parameter('wait_for_subscribers').value)
         self.started = self._wait_subscribers <= 0
-        self._rtf = self._check_rtf(self.get_parameter('real_time_factor').value)
-        self._duration = self._check_duration(self.get_parameter('duration').value)
         self.add_on_set_parameters_callback(self._validate_own)
         self.add_post_set_parameters_callback(self._apply_own)
 
         scenario = self.params.scenario
         self.dt = scenario.integration.dt
-        self.dt_ns = conv.dt_nanoseconds(self.dt)
         self._omega = 2.0 * math.pi * scenario.frequency
         self._joints = conv.JointTable(scenario.robot)
         self._joint_names = conv.joint_names(scenario.robot.wave_links)
