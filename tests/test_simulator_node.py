@@ -264,3 +264,18 @@ def test_divergence_stops_with_an_error_and_no_nan(start_simulator, watcher):
     poses = watcher.messages('/saw/pose')
     assert all(np.isfinite([p.pose.position.x, p.pose.position.y]).all() for p in poses)
     assert_every_step_once(watcher.stamps('/clock'), 1, watcher.count())
+
+
+def test_as_fast_as_possible_still_serves_requests_and_stops_on_sigint(start_simulator,
+                                                                       watcher):
+    """real_time_factor 0: requests are served between batches of steps, and Ctrl-C (SIGINT to
+    the process group) exits 0. (No stamp check: no Python subscriber keeps up at rtf 0.)"""
+    proc = start_simulator(real_time_factor=0.0)
+    assert watcher.wait(lambda: watcher.count() >= 100, 20), proc.output()
+    assert watcher.set_parameter('scenario.slope', 0.1).successful
+    assert watcher.set_parameter('real_time_factor', -2.0).successful is False
+    assert watcher.call(Trigger, '/simulator/reset', Trigger.Request()).success
+    assert proc.returncode is None
+    proc.signal(signal.SIGINT)
+    assert proc.wait(timeout=15) == 0, proc.output()
+    assert 'Traceback' not in proc.output()
