@@ -1,0 +1,13 @@
+"""Vision: a virtual side-view camera and the two-pink-marker tracker (numpy + OpenCV, no rclpy).
+
+``camera`` (the camera model shared by both), ``render`` (frames of the simulated robot),
+``tracker`` (marker detection, front/back assignment, position, pitch, speeds), ``video``
+(.mp4 writing and frame-by-frame reading), ``synthetic`` (rendered runs with their ground truth,
+for tests and benchmarks; the only module here that imports the simulation core).
+"""
+from .camera import CameraModel
+from .render import Renderer, RenderOptions, RobotPose
+from .tracker import FrameResult, Tracker, TrackerConfig, detect
+
+__all__ = ['CameraModel', 'FrameResult', 'Renderer', 'RenderOptions', 'RobotPose', 'Tracker',
+           'TrackerConfig', 'detect']
