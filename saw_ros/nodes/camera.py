@@ -1,0 +1,252 @@
+"""The camera node: a virtual 60 fps side-view camera of the simulated robot.
+
+Subscribes /saw/pose (PoseStamped) and /saw/joint_states (JointState, ``helix`` = wave phase) and
+renders one frame for every 1/fps s of SIMULATED time, stamped with that time: frame k is drawn
+once both streams have reached t_k + exposure / 2 (poses are interpolated between samples), and
+no frame is ever skipped, however late. Publishes /saw/camera/image_raw (sensor_msgs/Image, bgr8)
+and /saw/camera/camera_info (sensor_msgs/CameraInfo: K, P of the rendering, no distortion), both
+with the frame's stamp. Optionally writes the frames to an .mp4 (``video_path``).
+
+The drawing lives in ``saw_ros.vision.render``; docs/vision.md lists topics and parameters.
+"""
+from __future__ import annotations
+
+import array
+import bisect
+import math
+from typing import List
+
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image, JointState
+from geometry_msgs.msg import PoseStamped
+
+from .. import conversions as conv
+from ..core.params import ParameterError
+from ..ros_params import ScenarioParameters, accept_integers_for_doubles
+from ..vision.camera import CameraModel
+from ..vision.render import Renderer, RenderOptions, RobotPose
+from ..vision.video import VideoError, VideoWriter
+from .common import IMAGE_QOS, STREAM_QOS, NodeFailure, run_node
+
+NS = 1_000_000_000
+KEEP = 2.0          # s of simulated time kept in the pose buffers
+
+# name, default, description (unit in brackets)
+PARAMETERS = (
+    ('width', 1280, 'image width [px]'),
+    ('height', 720, 'image height [px]'),
+    ('fps', 60.0, 'frames per second of simulated time [Hz]'),
+    ('scale', 1200.0, 'pixels per metre in the plane of motion [px/m]; used when fov is 0'),
+    ('fov', 0.0, 'horizontal field of view [rad]; > 0 overrides scale'),
+    ('distance', 1.0, 'camera to the plane of motion [m]: focal length f = scale * distance'),
+    ('slope', 0.0, 'slope of the surfaces as the level camera sees them [rad]; set it to the '
+                   "simulator's scenario.slope"),
+    ('center_x', 0.33, 'surface-frame x seen at the image centre [m]'),
+    ('center_y', 0.0225, 'surface-frame y seen at the image centre [m]'),
+    ('noise', 0.0, 'sensor noise, standard deviation [grey levels]'),
+    ('exposure', 0.0, 'exposure time for motion blur [s]; 0 = none'),
+    ('blur_samples', 5, 'sub-frames averaged over the exposure'),
+    ('brightness', 1.0, 'brightness factor (1 = nominal)'),
+    ('texture', True, 'textured wall behind the track'),
+    ('seed', 0, 'random seed of texture and noise'),
+    ('video_path', '', '.mp4 file to write the frames to; empty = none'),
+    ('frame_id', 'saw_camera', 'frame_id of the images and camera info'),
+    ('pose_topic', '/saw/pose', 'robot pose input (PoseStamped)'),
+    ('joint_states_topic', '/saw/joint_states', "joint states input (JointState with 'helix')"),
+)
+
+
+def ns_to_s(ns: int) -> float:
+    return ns / NS
+
+
+class _Series:
+    """Time-stamped samples (stamps in ns, increasing) with linear interpolation."""
+
+    def __init__(self, width: int):
+        self.t: List[int] = []
+        self.v: List[tuple] = []
+        self.width = width
+
+    def add(self, t: int, values: tuple) -> bool:
+        """Append; False (and cleared) when time went backwards (a replay restarted)."""
+        if self.t and t <= self.t[-1]:
+            if t == self.t[-1]:
+                return True
+            self.t.clear()
+            self.v.clear()
+            self.t.append(t)
+            self.v.append(values)
+            return False
+        self.t.append(t)
+        self.v.append(values)
+        if len(self.t) > 4096 and self.t[-1] - self.t[0] > KEEP * NS:
+            cut = bisect.bisect_left(self.t, self.t[-1] - int(KEEP * NS))
+            del self.t[:cut]
+            del self.v[:cut]
+        return True
+
+    @property
+    def last(self) -> int:
+        return self.t[-1]
+
+    def at(self, t: float, wrap: bool = False):
+        """Values at time t (ns, float); clamped to the ends. ``wrap``: angles modulo 2 pi."""
+        i = bisect.bisect_left(self.t, t)
+        if i <= 0:
+            return self.v[0]
+        if i >= len(self.t):
+            return self.v[-1]
+        t0, t1 = self.t[i - 1], self.t[i]
+        a, b = self.v[i - 1], self.v[i]
+        w = (t - t0) / (t1 - t0)
+        if wrap:
+            return tuple(x + w * ((y - x + math.pi) % (2 * math.pi) - math.pi) for x, y in zip(a, b))
+        return tuple(x + w * (y - x) for x, y in zip(a, b))
+
+
+class CameraNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__('camera', **kwargs)
+        try:
+            keep = [n for n, _, _ in _scenario_describe() if n.startswith('robot.')] + \
+                ['scenario.gap']
+            exclude = [n for n, _, _ in _scenario_describe() if n not in keep]
+            self.params = ScenarioParameters(self, exclude=exclude,
+                                             frozen={'robot': 'restart the camera',
+                                                     'scenario.gap': 'restart the camera'})
+            floats = {n: d for n, d, _ in PARAMETERS if isinstance(d, float)}
+            accept_integers_for_doubles(self, floats, floats)
+            for name, default, text in PARAMETERS:
+                self.declare_parameter(name, default, ParameterDescriptor(
+                    description=text, read_only=True))
+            p = {name: self.get_parameter(name).value for name, _, _ in PARAMETERS}
+            camera = CameraModel(width=int(p['width']), height=int(p['height']),
+                                 scale=float(p['scale']), slope=float(p['slope']),
+                                 center_x=float(p['center_x']), center_y=float(p['center_y']),
+                                 distance=float(p['distance']))
+            if p['fov'] > 0:
+                camera = camera.with_fov(float(p['fov']))
+            options = RenderOptions(noise=float(p['noise']), exposure=float(p['exposure']),
+                                    blur_samples=int(p['blur_samples']),
+                                    brightness=float(p['brightness']), texture=bool(p['texture']),
+                                    seed=int(p['seed']))
+            if not p['fps'] > 0:
+                raise ValueError(f"fps = {p['fps']} must be > 0")
+            scenario = self.params.scenario
+            self.renderer = Renderer(scenario.robot, scenario.scenario.gap, camera, options)
+            self.writer = VideoWriter(p['video_path'], p['fps'], (camera.width, camera.height)) \
+                if p['video_path'] else None
+        except (ParameterError, ParameterException, ValueError, VideoError) as exc:
+            raise NodeFailure(f'invalid parameters: {exc}') from exc
+        self.camera = camera
+        self.fps = float(p['fps'])
+        self.frame_id = p['frame_id']
+        self.half_exposure_ns = options.exposure / 2.0 * NS
+        self.info = self._camera_info()
+        self._poses = _Series(3)
+        self._phases = _Series(1)
+        self._next = None          # index of the next frame
+        self.frames = 0
+        self._pub_image = self.create_publisher(Image, '/saw/camera/image_raw', IMAGE_QOS)
+        self._pub_info = self.create_publisher(CameraInfo, '/saw/camera/camera_info', IMAGE_QOS)
+        self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose, STREAM_QOS)
+        self.create_subscription(JointState, p['joint_states_topic'], self._on_joints,
+                                 STREAM_QOS)
+        self.get_logger().info(
+            f'camera {camera.width}x{camera.height} at {self.fps:g} fps of simulated time, '
+            f'{camera.scale:g} px/m (f = {camera.focal:g} px), slope '
+            f'{math.degrees(camera.slope):g} deg'
+            + (f', writing {p["video_path"]}' if self.writer else ''))
+
+    def _camera_info(self) -> CameraInfo:
+        cam = self.camera
+        info = CameraInfo()
+        info.header.frame_id = self.frame_id
+        info.width, info.height = cam.width, cam.height
+        info.distortion_model = 'plumb_bob'
+        info.d = [0.0] * 5
+        info.k = [float(v) for v in cam.K.ravel()]
+        info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+        info.p = [float(v) for v in cam.P.ravel()]
+        return info
+
+    # -- inputs --------------------------------------------------------------------------------
+    def _on_pose(self, msg: PoseStamped) -> None:
+        p = msg.pose.position
+        if not self._poses.add(conv.stamp_ns(msg.header.stamp),
+                               (p.x, p.y, conv.yaw_of(msg.pose.orientation))):
+            self._restart()
+        self._render_due()
+
+    def _on_joints(self, msg: JointState) -> None:
+        try:
+            i = msg.name.index('helix')
+        except ValueError:
+            return
+        if not self._phases.add(conv.stamp_ns(msg.header.stamp), (msg.position[i],)):
+            self._restart()
+        self._render_due()
+
+    def _restart(self) -> None:
+        self.get_logger().warning('input time went backwards: restarting the frame clock')
+        self._next = None
+
+    # -- frames --------------------------------------------------------------------------------
+    def frame_ns(self, k: int) -> int:
+        return int(round(k * NS / self.fps))
+
+    def pose_at(self, t_ns: float) -> RobotPose:
+        x, y, theta = self._poses.at(t_ns)
+        (phase,) = self._phases.at(t_ns, wrap=True)
+        return RobotPose(x, y, theta, phase % (2.0 * math.pi))
+
+    def _render_due(self) -> None:
+        if not self._poses.t or not self._phases.t:
+            return
+        if self._next is None:
+            start = max(self._poses.t[0], self._phases.t[0])
+            self._next = int(math.ceil(start * self.fps / NS - 1e-9))
+        ready = min(self._poses.last, self._phases.last)
+        while self.frame_ns(self._next) + self.half_exposure_ns <= ready:
+            t_ns = self.frame_ns(self._next)
+            frame = self.renderer.render(self.pose_at(t_ns), (),
+                                         lambda t: self.pose_at(t * NS), t_ns / NS)
+            self._publish(frame, t_ns)
+            self._next += 1
+
+    def _publish(self, frame, t_ns: int) -> None:
+        img = Image()
+        conv.time_msg(t_ns, img.header.stamp)
+        img.header.frame_id = self.frame_id
+        img.height, img.width = frame.shape[:2]
+        img.encoding = 'bgr8'
+        img.is_bigendian = 0
+        img.step = img.width * 3
+        img.data = array.array('B', frame.tobytes())
+        conv.time_msg(t_ns, self.info.header.stamp)
+        self._pub_image.publish(img)
+        self._pub_info.publish(self.info)
+        if self.writer is not None:
+            self.writer.write(frame)
+        self.frames += 1
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
+
+def _scenario_describe():
+    from ..core.params import Scenario
+    return list(Scenario().describe())
+
+
+def main(args=None) -> int:
+    return run_node(CameraNode, args=args)
+
+
+if __name__ == '__main__':
+    import sys
+    sys.exit(main())
