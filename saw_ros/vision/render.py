@@ -280,7 +280,7 @@ class Renderer:
             dy, dx = self._rng.integers(0, 32, 2)
             h, w = cam.height, cam.width
             cv2.add(frame, pos[dy:dy + h, dx:dx + w], dst=frame)
-            dy, dx = self._rng.integers(0, 32, 2)
+            # Same offset for both halves: pos - neg is the Gaussian sample itself.
             cv2.subtract(frame, neg[dy:dy + h, dx:dx + w], dst=frame)
         return frame
 
