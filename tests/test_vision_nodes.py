@@ -1,0 +1,127 @@
+"""camera + vision nodes through real topics (isolated domain from conftest), and the video the
+camera writes read back by the offline tracker."""
+import math
+
+import pytest
+
+from saw_ros import conversions as conv
+from saw_ros.core import Scenario, Simulator
+from saw_ros.process import wait_for
+from saw_ros.vision.tracker import TrackerConfig
+
+STEADY = 2.0          # s, steady window for this short run
+DURATION = 4.6        # s of simulated time
+
+
+@pytest.fixture
+def nodes(ros_context, tmp_path):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    from saw_ros.nodes.camera import CameraNode
+    from saw_ros.nodes.common import STREAM_QOS
+    from saw_ros.nodes.vision import VisionNode
+
+    video = tmp_path / 'camera.mp4'
+    camera = CameraNode(context=ros_context, parameter_overrides=[
+        Parameter('video_path', value=str(video))])
+    vision = VisionNode(context=ros_context, parameter_overrides=[
+        Parameter('steady_window', value=STEADY)])
+    source = Node('test_source', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    for n in (camera, vision, source):
+        executor.add_node(n)
+    try:
+        yield camera, vision, source, executor, video, STREAM_QOS
+    finally:
+        executor.shutdown()
+        camera.close()
+        for n in (camera, vision, source):
+            n.destroy_node()
+
+
+def test_camera_and_vision_nodes_track_the_simulation(nodes):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped
+    from sensor_msgs.msg import CameraInfo, Image, JointState
+
+    from saw_ros.commands.track import track_video
+
+    camera, vision, source, executor, video, qos = nodes
+    got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image')}
+    source.create_subscription(PoseStamped, '/saw/tracking/pose', got['pose'].append, qos)
+    source.create_subscription(TwistStamped, '/saw/tracking/steady_speed', got['steady'].append,
+                               qos)
+    source.create_subscription(DiagnosticArray, '/saw/tracking/status', got['status'].append,
+                               qos)
+    source.create_subscription(PointStamped, '/saw/tracking/front', got['front'].append, qos)
+    source.create_subscription(CameraInfo, '/saw/camera/camera_info', got['info'].append, qos)
+    source.create_subscription(Image, '/saw/camera/image_raw',
+                               lambda m: got['image'].append(conv.stamp_ns(m.header.stamp)), qos)
+    pub_pose = source.create_publisher(PoseStamped, '/saw/pose', qos)
+    pub_joints = source.create_publisher(JointState, '/saw/joint_states', qos)
+    assert wait_for(lambda: pub_pose.get_subscription_count() >= 1
+                    and pub_joints.get_subscription_count() >= 1
+                    and vision.count_publishers('/saw/camera/image_raw') >= 1, 10.0,
+                    spin=lambda t: executor.spin_once(timeout_sec=t))
+
+    sim = Simulator(Scenario())
+    joints = JointState()
+    joints.name = ['helix']
+
+    def publish():
+        t_ns = sim.steps * 1_000_000
+        q = sim.q[:, 0]
+        pub_pose.publish(conv.pose_msg(q[0], q[1], q[2], t_ns))
+        conv.time_msg(t_ns, joints.header.stamp)
+        joints.position = [float(sim.phase[0])]
+        pub_joints.publish(joints)
+
+    publish()
+    truth = {}
+    while sim.t < DURATION - 1e-9:
+        for _ in range(50):
+            sim.step()
+            publish()
+            truth[sim.steps] = sim.q[0, 0]
+        # Frames due so far: every 1/60 s up to the published time; wait for all of them.
+        due = int(math.floor(sim.t * 60 + 1e-9)) + 1
+        assert wait_for(lambda: vision.results >= due, 20.0,
+                        spin=lambda t: executor.spin_once(timeout_sec=t)), \
+            (camera.frames, vision.results, due)
+    wait_for(lambda: min(len(got[k]) for k in ('status', 'pose', 'front', 'image'))
+             >= vision.results and got['steady'], 5.0,
+             spin=lambda t: executor.spin_once(timeout_sec=t))
+
+    # 60 frames per simulated second, stamped k / 60 s, none skipped.
+    frames = camera.frames
+    assert frames == int(math.floor(DURATION * 60 + 1e-9)) + 1
+    stamps = sorted(got['image'])
+    assert stamps == [int(round(k * 1e9 / 60)) for k in range(len(stamps))]
+    assert got['info'][-1].k[0] == pytest.approx(1200.0)
+    assert all(s.status[0].message == 'ok' for s in got['status'])
+    assert len(got['pose']) == frames and len(got['front']) == frames
+    last = got['pose'][-1]
+    t_last = conv.stamp_ns(last.header.stamp) / 1e9
+    assert last.header.frame_id == 'surface'
+    assert last.pose.position.x == pytest.approx(truth[round(t_last * 1000)], abs=3e-4)
+    live = got['steady'][-1].twist.linear.x
+    true_speed = (truth[sim.steps] - truth[sim.steps - 2000]) / 2.0
+    assert live == pytest.approx(true_speed, rel=0.01)
+
+    # The camera's video, read back offline, gives the same speed within 0.5 %.
+    camera.close()
+    results, tracker = track_video(video, dict(scale=1200.0), TrackerConfig(steady_window=STEADY))
+    assert len(results) == frames and tracker.counters.ok == frames
+    offline = results[-1].steady_speed
+    assert offline == pytest.approx(live, rel=0.005)
+
+
+def test_vision_node_rejects_bad_parameters(ros_context):
+    from rclpy.parameter import Parameter
+
+    from saw_ros.nodes.common import NodeFailure
+    from saw_ros.nodes.vision import VisionNode
+    with pytest.raises(NodeFailure):
+        VisionNode(context=ros_context, parameter_overrides=[Parameter('gate', value=-1.0)])
