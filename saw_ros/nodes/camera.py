@@ -103,7 +103,8 @@ class _Series:
         a, b = self.v[i - 1], self.v[i]
         w = (t - t0) / (t1 - t0)
         if wrap:
-            return tuple(x + w * ((y - x + math.pi) % (2 * math.pi) - math.pi) for x, y in zip(a, b))
+            return tuple(x + w * ((y - x + math.pi) % (2 * math.pi) - math.pi)
+                         for x, y in zip(a, b))
         return tuple(x + w * (y - x) for x, y in zip(a, b))
 
 

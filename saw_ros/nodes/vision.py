@@ -21,7 +21,6 @@ Pose and twists are published only for 'ok' frames: nothing is made up. The math
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The camera model shared by the renderer and the tracker: a level pinhole camera beside the track.
+"""The camera model of the renderer and the tracker: a level pinhole camera beside the track.
 
 The camera looks square at the plane in which the robot moves (its side), from ``distance``
 metres. In that plane one metre is ``scale`` pixels (f = scale * distance is the focal length
@@ -35,7 +35,7 @@ class CameraModel:
     slope: float = 0.0           # rad, the surfaces' angle to the image horizontal (+ climbs)
     center_x: float = 0.33       # m, surface-frame x seen at the principal point
     center_y: float = 0.0225     # m, surface-frame y seen at the principal point
-    distance: float = 1.0        # m, optical centre to the plane of motion (focal = scale * distance)
+    distance: float = 1.0        # m, optical centre to the plane of motion (f = scale * distance)
     mirror: bool = False         # True: surface +x points to the image's left
     cx: Optional[float] = None   # px, principal point; None = image centre
     cy: Optional[float] = None   # px

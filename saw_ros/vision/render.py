@@ -194,8 +194,10 @@ class Renderer:
         """A pink disc drawn from its exact (1-pixel ramp) coverage."""
         radius = self.options.marker_radius * self.camera.scale
         h, w = img.shape[:2]
-        u0, u1 = int(math.floor(centre.real - radius - 1)), int(math.ceil(centre.real + radius + 2))
-        v0, v1 = int(math.floor(centre.imag - radius - 1)), int(math.ceil(centre.imag + radius + 2))
+        u0 = int(math.floor(centre.real - radius - 1))
+        u1 = int(math.ceil(centre.real + radius + 2))
+        v0 = int(math.floor(centre.imag - radius - 1))
+        v1 = int(math.ceil(centre.imag + radius + 2))
         u0c, u1c, v0c, v1c = max(u0, 0), min(u1, w), max(v0, 0), min(v1, h)
         if u0c >= u1c or v0c >= v1c:
             return
