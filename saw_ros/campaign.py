@@ -106,7 +106,7 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
                                                       tracked):
         comp = RunComparator(s.robot, s.frequency)
         q = trajectory.q[:, i]
-        for row in zip(trajectory.t, q[:, 0], q[:, 3]):
+        for row in zip(trajectory.t, q[:, 0]):
             comp.add_truth(*row)
         for row in zip(times, xs):
             comp.add_tracked(*row)

@@ -72,7 +72,7 @@ class ComparisonNode(Node):
         self.done = False
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._last_truth_wall = None
-        self._last_truth = None          # (t, x) of the previous pose, for vx
+        self._last_truth = None          # (t, x) of the latest pose
         self.publisher = self.create_publisher(DiagnosticArray, '/saw/comparison', LATCHED_QOS)
         self.create_subscription(PoseStamped, '/saw/pose', self._on_truth, STREAM_QOS, raw=True)
         self.create_subscription(PoseStamped, '/saw/tracking/pose', self._on_tracked, TRACK_QOS)
@@ -127,15 +127,9 @@ class ComparisonNode(Node):
     # -- data --------------------------------------------------------------------------------
     def _on_truth(self, data: bytes):
         t, x, _y, _theta = cdr.pose_stamped(data)
-        previous = self._last_truth
         self._last_truth = (t, x)
         self._last_truth_wall = self._wall.now()
-        if previous is None or t <= previous[0]:
-            if previous is not None and t < previous[0]:
-                self.comparator.reset()
-            return
-        # Semi-implicit Euler: x_i - x_(i-1) = v_i dt, so the difference is the true vx.
-        self.comparator.add_truth(t, x, (x - previous[1]) / (t - previous[0]))
+        self.comparator.add_truth(t, x)
 
     def _on_tracked(self, msg: PoseStamped):
         t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9

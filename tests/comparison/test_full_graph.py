@@ -1,0 +1,49 @@
+"""The whole graph as separate processes (simulator, camera, vision, comparison, recorder) on a
+short run, and the in-process campaign on the same condition: the same numbers."""
+import math
+
+import pytest
+from rclpy.serialization import deserialize_message
+from diagnostic_msgs.msg import DiagnosticArray
+
+from saw_ros.bag.reader import BagReader
+from saw_ros.campaign import run_campaign
+from saw_ros.pipeline import run_pipeline
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+SLOPE_DEG, VOLTS = 10.0, 6.0
+
+
+@pytest.fixture(scope='module')
+def graph_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp('graph')
+    run = run_pipeline(out, duration=4.0, real_time_factor=0.5, video=False,
+                       bag_dir=out / 'bag',
+                       scenario={'scenario.slope': math.radians(SLOPE_DEG),
+                                 'motor.voltage': VOLTS})
+    return run
+
+
+def test_every_node_exits_cleanly_and_the_comparison_arrives_on_its_topic(graph_run):
+    assert graph_run.ok, {name: path.read_text()[-1500:] for name, path in graph_run.logs.items()
+                          if graph_run.exit_codes.get(name)}
+    reports = [deserialize_message(m.data, DiagnosticArray)
+               for m in BagReader(str(graph_run.bag_dir)).messages(['/saw/comparison'])]
+    final = [r for r in reports if r.status[0].name.endswith('(final)')]
+    assert final, [r.status[0].message for r in reports]
+    values = {kv.key: kv.value for kv in final[-1].status[0].values}
+    assert values['status'] == 'steady'
+    ar_sim, ar_tracked = float(values['ar_sim']), float(values['ar_tracked'])
+    assert 0.5 < ar_sim < 0.9 and 0.5 < ar_tracked < 0.9
+    assert float(values['relative_error']) < 0.02
+    # Nothing lost on the way: every step reached the comparison.
+    assert int(float(values['truth_samples'])) == 4000
+
+
+def test_in_process_campaign_gives_the_same_numbers_as_the_nodes_over_dds(graph_run):
+    dds = graph_run.comparison
+    (inproc,) = run_campaign([SLOPE_DEG], [VOLTS], workers=1)
+    assert inproc.ar_sim == pytest.approx(dds['ar_sim'], rel=0.005)
+    assert inproc.ar_tracked == pytest.approx(dds['ar_tracked'], rel=0.005)
+    assert inproc.v_theory == pytest.approx(dds['v_theory_m_s'], rel=1e-9)
