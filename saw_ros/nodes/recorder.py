@@ -130,6 +130,7 @@ class Recorder(Node):
         self._depth = int(self.get_parameter('queue_depth').value)
         self._queue: 'queue.SimpleQueue' = queue.SimpleQueue()
         self._subs: Dict[str, object] = {}
+        self._unmatched: Dict[str, tuple] = {}   # topic: (type, subscribed at), not matched yet
         self.received = 0
         self._write_error = None
         self._closed = False
@@ -146,6 +147,8 @@ class Recorder(Node):
         self._discover()
         self._timer = self.create_timer(float(self.get_parameter('discovery_period').value),
                                         self._discover)
+        self._match_timer = self.create_timer(0.02, lambda: self._unmatched and
+                                              self._report_matched())
 
     # ---- discovery
     def _wanted(self, name: str) -> bool:
@@ -171,7 +174,19 @@ class Recorder(Node):
             node = self._large_node() if type_name in LARGE_TYPES else self
             self._subs[name] = self._subscribe(node, name, msg_type,
                                                request_qos(offers, self._depth))
-            self.get_logger().info(f'recording {name} [{type_name}]')
+            self._unmatched[name] = (type_name, time.monotonic())
+        self._report_matched()
+
+    def _report_matched(self) -> None:
+        """Log 'recording <topic>' once the subscription has matched a publisher: from then on
+        nothing published on it is missed (scripts and tests wait for this line)."""
+        for name, (type_name, since) in list(self._unmatched.items()):
+            holder = self._subs.get(name)
+            if holder is None or holder['sub'].get_publisher_count() < 1:
+                continue
+            del self._unmatched[name]
+            self.get_logger().info(f'recording {name} [{type_name}] '
+                                   f'(matched after {time.monotonic() - since:.2f} s)')
 
     def _large_node(self):
         if self._large is None:
