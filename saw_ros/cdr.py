@@ -27,3 +27,144 @@ def pose_stamped(data: bytes):
     offset += -offset % 8                        # doubles align to 8 (from the body start)
     x, y, _z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, _HEADER + offset)
     return sec + nanosec * 1e-9, x, y, 2.0 * math.atan2(qz, qw)
+
+
+_STAMP_LE = struct.Struct('<iI')
+_U32_LE = struct.Struct('<I')
+
+
+def _u32(data, e: str, offset: int) -> int:
+    return struct.unpack_from(e + 'I', data, _HEADER + offset)[0]
+
+
+def _string_end(data, e: str, offset: int) -> int:
+    """Body offset just past the CDR string that starts (aligned) at body ``offset``."""
+    return offset + 4 + _u32(data, e, offset)
+
+
+def _align(offset: int, size: int) -> int:
+    return offset + (-offset % size)
+
+
+def stamp_ns(data: bytes) -> int:
+    """header.stamp in ns of any message that starts with a std_msgs/Header (or is a Clock)."""
+    e = _prefix(data)
+    sec, nanosec = struct.unpack_from(e + 'iI', data, _HEADER)
+    return sec * 1_000_000_000 + nanosec
+
+
+def pose_stamped_ns(data: bytes):
+    """(stamp in ns, x, y, pitch about z) of a geometry_msgs/PoseStamped (stamp exact)."""
+    e = _prefix(data)
+    sec, nanosec, length = struct.unpack_from(e + 'iII', data, _HEADER)
+    offset = _align(12 + length, 8)
+    x, y, _z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, _HEADER + offset)
+    return sec * 1_000_000_000 + nanosec, x, y, 2.0 * math.atan2(qz, qw)
+
+
+class JointPosition:
+    """Reads one joint's position (by name) from sensor_msgs/JointState CDR bytes.
+
+    ``reader(data)`` -> (stamp in ns, position), position None when the joint is not in the
+    message (or has no position). The offsets are worked out once per layout of header and names
+    (a publisher keeps them fixed) and checked by comparing those bytes, so a message costs two
+    struct reads and a bytes comparison.
+    """
+
+    def __init__(self, name: str):
+        self.name = name
+        self._key = None            # (endianness, bytes of frame_id + names)
+        self._at = None             # body offset of the double, or None
+
+    def _layout(self, data, e: str):
+        n = _u32(data, e, 8)
+        offset = _align(12 + n, 4)           # names: sequence<string>
+        count = _u32(data, e, offset)
+        offset += 4
+        index = None
+        for i in range(count):
+            offset = _align(offset, 4)
+            length = _u32(data, e, offset)
+            text = bytes(data[_HEADER + offset + 4:_HEADER + offset + 4 + length]).rstrip(b'\0')
+            if index is None and text == self.name.encode():
+                index = i
+            offset += 4 + length
+        names_end = offset
+        offset = _align(offset, 4)           # position: sequence<double>
+        positions = _u32(data, e, offset)
+        at = None
+        if index is not None and index < positions:
+            at = _align(offset + 4, 8) + 8 * index
+        return (e, bytes(data[_HEADER + 8:_HEADER + names_end])), at
+
+    def __call__(self, data):
+        e = _prefix(data)
+        sec, nanosec, n = struct.unpack_from(e + 'iII', data, _HEADER)
+        key = self._key
+        if key is None or key[0] != e or \
+                data[_HEADER + 8:_HEADER + 8 + len(key[1])] != key[1]:
+            self._key, self._at = self._layout(data, e)
+        at = self._at
+        value = None if at is None else struct.unpack_from(e + 'd', data, _HEADER + at)[0]
+        return sec * 1_000_000_000 + nanosec, value
+
+
+class ImageView:
+    """The fields of a sensor_msgs/Image read from its CDR bytes; ``data`` is a zero-copy
+    memoryview of the pixel bytes (valid as long as the message buffer is)."""
+
+    __slots__ = ('stamp_ns', 'frame_id', 'height', 'width', 'encoding', 'is_bigendian', 'step',
+                 'data')
+
+    def __init__(self, raw):
+        e = _prefix(raw)
+        view = memoryview(raw)
+        sec, nanosec, n = struct.unpack_from(e + 'iII', raw, _HEADER)
+        self.stamp_ns = sec * 1_000_000_000 + nanosec
+        self.frame_id = bytes(view[_HEADER + 12:_HEADER + 12 + n]).rstrip(b'\0').decode()
+        offset = _align(12 + n, 4)
+        self.height, self.width, n = struct.unpack_from(e + 'III', raw, _HEADER + offset)
+        offset += 12
+        self.encoding = bytes(view[_HEADER + offset:_HEADER + offset + n]).rstrip(
+            b'\0').decode()
+        offset += n
+        self.is_bigendian = raw[_HEADER + offset]
+        offset = _align(offset + 1, 4)
+        self.step, size = struct.unpack_from(e + 'II', raw, _HEADER + offset)
+        offset += 8
+        if _HEADER + offset + size > len(raw):
+            raise ValueError('image data runs past the end of the message')
+        self.data = view[_HEADER + offset:_HEADER + offset + size]
+
+
+def _cdr_string(text: str) -> bytes:
+    """A CDR string: u32 length (with the NUL), the characters, the NUL (caller aligns to 4)."""
+    raw = text.encode() + b'\0'
+    return _U32_LE.pack(len(raw)) + raw
+
+
+class ImageCdr:
+    """Encodes sensor_msgs/Image (little-endian XCDR1) around a frame's pixel bytes, with one
+    copy of the pixels: ``encoder(pixels, stamp_ns)`` -> bytes ready for ``publish``."""
+
+    def __init__(self, width: int, height: int, encoding: str, step: int, frame_id: str):
+        body = bytearray()
+        body += _cdr_string(frame_id)                   # after the stamp (8 bytes)
+        offset = 8 + len(body)
+        body += b'\0' * (-offset % 4)
+        body += struct.pack('<II', height, width)
+        body += _cdr_string(encoding)
+        body += b'\0'                                      # is_bigendian
+        offset = 8 + len(body)
+        body += b'\0' * (-offset % 4)
+        body += struct.pack('<I', step)
+        self._head = bytes(body)
+        self._size = step * height
+
+    def __call__(self, pixels, nanoseconds: int) -> bytes:
+        view = memoryview(pixels).cast('B')
+        if view.nbytes != self._size:
+            raise ValueError(f'{view.nbytes} pixel bytes, expected {self._size}')
+        sec, nanosec = divmod(nanoseconds, 1_000_000_000)
+        return b''.join((b'\0\x01\0\0', _STAMP_LE.pack(sec, nanosec), self._head,
+                         _U32_LE.pack(self._size), view))

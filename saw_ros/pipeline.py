@@ -48,8 +48,11 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                  bag_dir: Optional[Path] = None, video: bool = True,
                  camera: Optional[Dict[str, object]] = None,
                  reference_file: Optional[Path] = None, timeout: Optional[float] = None,
-                 progress=None) -> PipelineRun:
-    """Run the graph once; always stops every process it started (also on Ctrl-C)."""
+                 progress=None, record_topics: Optional[List[str]] = None) -> PipelineRun:
+    """Run the graph once; always stops every process it started (also on Ctrl-C).
+
+    ``record_topics``: what the recorder records (default: its own default, every topic).
+    """
     out_dir = Path(out_dir)
     logs = out_dir / 'logs'
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -74,10 +77,13 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
         if record:
             if bag_dir is None:
                 bag_dir = Path('bags') / time.strftime('%Y-%m-%d_%H-%M-%S_demo')
-            launch('recorder', output=str(bag_dir))
+            extra = {'topics': '[' + ','.join(f"'{t}'" for t in record_topics) + ']'} \
+                if record_topics else {}
+            launch('recorder', output=str(bag_dir), **extra)
+        # An empty value ('-p reference_file:=') is a parse error for rcl: leave it out.
         comparison = launch('comparison', report_path=str(report_path), exit_when_done=True,
                             idle_timeout=2.0,
-                            reference_file=str(reference_file) if reference_file else '')
+                            **({'reference_file': str(reference_file)} if reference_file else {}))
         # The level camera sees the surfaces at the run's slope; the tracker must know it too.
         slope = float(scenario.get('scenario.slope', 0.0))
         launch('vision', use_sim_time=True, slope=slope)
