@@ -60,13 +60,10 @@ def test_images_and_streams_recorded(tmp_path):
     published = run_loadgen(tmp_path, rate=1000.0, duration=2.0, streams=6, image_fps=60.0,
                             start_delay=1.5)
     assert rec.stop(20) == 0, rec.output()
-    counts = bag_counts(out)
-    assert counts['/saw/camera/image_raw'] == published['/saw/camera/image_raw']
-    lost = sum(published[t] - counts.get(t, 0) for t in SIM_TOPICS)
-    # Zero is the goal (and holds without images); on a shared 2-core machine 0-0.3 % of the
-    # 1 kHz messages were seen dropped
-    # by the publishers' short histories while 166 MB/s of images are on the wire.
-    assert lost <= 0.01 * sum(published[t] for t in SIM_TOPICS), (counts, published)
+    # Every message published is in the bag: 1 kHz on the 6 simulator topics plus 60 fps
+    # 1280x720 images (loadgen: 1 s publisher histories like the simulator's, images from a
+    # participant of their own like the camera's, 2 s of image history; docs/bags.md "Loss").
+    assert bag_counts(out) == published
 
 
 def test_kill_9_leaves_complete_chunks_readable(tmp_path):

@@ -4,8 +4,11 @@ counted messages, to test and benchmark the recorder without the simulator.
 Parameters: ``rate`` (Hz, for each 1 kHz-class topic), ``duration`` (s), ``streams`` (how many of
 clock, pose, twist, contacts, contact_wrench, joint_states: 0-6), ``image_fps`` (0: no images),
 ``image_width``/``image_height``, ``prefix`` (topic namespace, default ``/saw``; /clock is
-``<prefix>/clock`` unless ``prefix`` is /saw), ``wait_subscribers`` (start once every topic has this many subscriptions,
-at most 30 s), ``start_delay`` (s, after that).
+``<prefix>/clock`` unless ``prefix`` is /saw), ``wait_subscribers`` (start once every topic has
+this many subscriptions, at most 30 s), ``start_delay`` (s, after that), ``publisher_depth`` (history of the 1 kHz-class
+publishers: 1000 as the simulator's, ``PUBLISHER_DEPTH``; 0 = the contract's STREAM_QOS/CLOCK_QOS
+depths 200/100), ``image_depth`` (history of the image publisher, default 120: see IMAGE_DEPTH),
+``image_participant`` (images from a DDS participant of their own, as from the camera node).
 At the end it waits for reliable delivery, prints ``published <topic> <count>`` lines and exits.
 """
 from __future__ import annotations
@@ -19,6 +22,14 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
 
 from saw_ros.nodes.common import CLOCK_QOS, IMAGE_QOS, STREAM_QOS, run_node
+from saw_ros.nodes.simulator import PUBLISHER_DEPTH, deeper
+
+# Images: 2 s at 60 fps. A KEEP_LAST writer overwrites samples not yet acknowledged when it
+# publishes a burst longer than its depth, and this node bursts to catch up its schedule after
+# being descheduled (0.3-0.7 s stalls seen on 2 shared cores: 20-48 images lost at depth 30).
+# Fast DDS drops acknowledged samples of a volatile writer, so the depth costs memory only while
+# a reader is behind.
+IMAGE_DEPTH = 120
 
 
 def _cloud(points: int) -> PointCloud2:
@@ -39,7 +50,9 @@ class LoadGen(Node):
         p = {name: self.declare_parameter(name, default).value for name, default in (
             ('rate', 1000.0), ('duration', 3.0), ('streams', 6), ('image_fps', 0.0),
             ('image_width', 1280), ('image_height', 720), ('prefix', '/saw'),
-            ('start_delay', 0.0), ('wait_subscribers', 1))}
+            ('start_delay', 0.0), ('wait_subscribers', 1),
+            ('publisher_depth', PUBLISHER_DEPTH), ('image_depth', IMAGE_DEPTH),
+            ('image_participant', True))}
         self.p = p
         prefix = p['prefix'].rstrip('/')
         clock_topic = '/clock' if prefix == '/saw' else f'{prefix}/clock'
@@ -51,7 +64,9 @@ class LoadGen(Node):
                    (f'{prefix}/contacts', PointCloud2, _cloud(40), STREAM_QOS),
                    (f'{prefix}/contact_wrench', WrenchStamped, WrenchStamped(), STREAM_QOS),
                    (f'{prefix}/joint_states', JointState, joints, STREAM_QOS)][:int(p['streams'])]
-        self.streams = [(topic, self.create_publisher(t, topic, qos), msg)
+        depth = int(p['publisher_depth'])
+        self.streams = [(topic, self.create_publisher(t, topic, deeper(qos, depth) if depth > 0
+                                                      else qos), msg)
                         for topic, t, msg, qos in streams]
         self.image = None
         if p['image_fps'] > 0:
@@ -60,11 +75,24 @@ class LoadGen(Node):
             img.header.frame_id = 'camera'
             img.data = bytes(range(256)) * (3 * w * h // 256) + bytes(3 * w * h % 256)
             self.image = (f'{prefix}/camera/image_raw',
-                          self.create_publisher(Image, f'{prefix}/camera/image_raw', IMAGE_QOS),
+                          self._image_node().create_publisher(Image, f'{prefix}/camera/image_raw',
+                                                deeper(IMAGE_QOS, int(p['image_depth']))),
                           img)
         self.counts = {topic: 0 for topic, _, _ in self.streams}
         if self.image:
             self.counts[self.image[0]] = 0
+
+    def _image_node(self) -> Node:
+        """With ``image_participant`` images go out from a DDS participant of their own, as they
+        do from the camera node (another process) in the real graph."""
+        if not self.p['image_participant']:
+            return self
+        import rclpy
+        from rclpy.context import Context
+        context = Context()
+        rclpy.init(context=context)
+        self._image_context = context
+        return Node('loadgen_images', context=context)
 
     def run(self) -> None:
         p = self.p
@@ -79,12 +107,15 @@ class LoadGen(Node):
         image_period = 1.0 / p['image_fps'] if self.image else None
         start = time.monotonic()
         next_tick, next_image, tick = start, start, 0
+        max_lag, lag_at = 0.0, 0.0   # how far publishing fell behind its schedule, and when
         end = start + p['duration']
         while True:
             now = time.monotonic()
             if now >= end:
                 break
             if period is not None and now >= next_tick:
+                if now - next_tick > max_lag:
+                    max_lag, lag_at = now - next_tick, next_tick - start
                 tick += 1
                 stamp = Time(sec=tick // 1000, nanosec=(tick % 1000) * 1_000_000)
                 for topic, pub, msg in self.streams:
@@ -114,6 +145,7 @@ class LoadGen(Node):
         for topic, n in self.counts.items():
             print(f'published {topic} {n}', flush=True)
         print(f'elapsed {elapsed:.3f}', flush=True)
+        print(f'max_lag {max_lag:.4f} at {lag_at:.3f}', flush=True)
 
 
 def main(args=None):
