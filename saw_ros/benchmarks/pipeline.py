@@ -9,8 +9,9 @@ A rung is sustained when ALL of these hold (N = duration / dt steps, F = 60 x du
 - the bag holds, for each 1 kHz topic (/clock and the five /saw streams), exactly N messages
   stamped 1..N ms, consecutive (no gap, no repeat);
 - the bag holds F images and F camera infos, frame k (k = 1..F) stamped k/60 s, in order;
-- /saw/tracking/status holds F messages (one per frame) and /saw/tracking/pose exactly one per
-  'ok' frame (the last status's ok_frames count), each stamped as a frame;
+- /saw/tracking/status holds F messages (one per frame), the last one counts F frames (the
+  tracker got every image) and /saw/tracking/pose holds exactly one per 'ok' frame (that
+  status's ok_frames), each stamped as a frame;
 - the camera received all N poses and N joint states (its log's final counts);
 - the comparison's truth_samples == N, tracked_samples == the ok frames, and it reached
   steady state;
@@ -134,6 +135,7 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     stamps: Dict[str, List[int]] = {}
     log_times: Dict[str, List[int]] = {}
     ok_frames = None
+    vision_frames = 0
     reader = BagReader(str(run.bag_dir))
     tracking = ('/saw/tracking/status', '/saw/tracking/pose')
     for m in reader.messages(STREAMS + ('/saw/camera/image_raw', '/saw/camera/camera_info')
@@ -143,6 +145,7 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     for _m, msg in reader.decoded_messages(['/saw/tracking/status']):
         values = {kv.key: kv.value for kv in msg.status[0].values}
         ok_frames = int(values.get('ok_frames', 0))
+        vision_frames = int(values.get('frames', 0))
     for topic in STREAMS:
         lost[topic] = _missing(stamps.get(topic, []),
                                [k * step_ns for k in range(1, n + 1)])
@@ -157,6 +160,7 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     if ok_frames is None:
         problems.append('no tracking status in the bag')
         ok_frames = 0
+    lost['vision frames'] = frames - vision_frames      # images the tracker never got
     lost['/saw/tracking/pose'] = abs(ok_frames - len(pose)) + len(set(pose) - set(frame_stamps))
     c = run.comparison
     lost['comparison truth'] = n - int(c.get('truth_samples', 0) or 0)

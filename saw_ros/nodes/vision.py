@@ -119,6 +119,7 @@ class VisionNode(Node):
         if not p['px_per_m'] > 0:
             self.create_subscription(CameraInfo, p['camera_info_topic'], self._on_info,
                                      IMAGE_QOS)
+        self.get_logger().info(f"tracking the markers in {p['image_topic']}")
 
     def _camera(self, width: int, height: int) -> CameraModel:
         if self.p['px_per_m'] > 0:
