@@ -18,12 +18,6 @@ from typing import Dict, List, Optional
 from .process import ManagedProcess, isolated_ros_env, node_command
 
 
-# Topics of the camera, vision and comparison nodes that the recorder must have matched before
-# the simulator starts (the camera's and tracker's carry a message from the first frame on).
-DOWNSTREAM_TOPICS = ('/saw/camera/image_raw', '/saw/camera/camera_info', '/saw/tracking/front',
-                     '/saw/tracking/back', '/saw/tracking/pose', '/saw/tracking/twist',
-                     '/saw/tracking/twist_smoothed', '/saw/tracking/steady_speed',
-                     '/saw/tracking/status', '/saw/comparison')
 MATCH_TIMEOUT = 20.0     # s; then the run goes on anyway (and the bench reports what was lost)
 
 
@@ -122,6 +116,11 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             time.sleep(0.1)
 
     try:
+        # Every topic needs a subscriber before the first step: the recorder's, or with no
+        # recorder the camera's and comparison's (then only /saw/pose and /saw/joint_states).
+        simulator = launch('simulator', duration=float(duration),
+                           real_time_factor=float(real_time_factor),
+                           wait_for_subscribers=1 if record else 0, **scenario)
         # An empty value ('-p reference_file:=') is a parse error for rcl: leave it out.
         comparison = launch('comparison', report_path=str(report_path), exit_when_done=True,
                             idle_timeout=2.0,
@@ -131,27 +130,21 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
         vision_node = launch('vision', use_sim_time=True, slope=slope)
         camera_node = launch('camera', use_sim_time=True, slope=slope, **camera_params)
         if record:
-            # The recorder comes once the others are up (their start-up logs; the camera took up
-            # to 3 s on a busy machine), and the simulator once the recorder has matched every
-            # topic of theirs: camera and tracker publish from the first frame on, and the
-            # recorder's image subscription (a DDS participant of its own) took 2.5 s to match.
-            # Started with the others, the simulator began before the camera was up (its first
-            # poses lost) and before the recorder had the image topic (first frames lost).
-            wait_for_log(camera_node, ['fps of simulated time'], MATCH_TIMEOUT)
+            # With a recorder the simulator starts stepping once the recorder has matched its
+            # topics (/saw/twist & co. have no other subscriber). So the recorder comes last:
+            # once camera and comparison have matched the simulator (their logs; started
+            # together, the camera or comparison sometimes matched 0.25-0.5 s after the
+            # recorder: their first poses were lost) and the tracker is up. The recorder matches
+            # the camera's and tracker's topics (published from the first frame on) in the same
+            # discovery pass as the simulator's.
+            wait_for_log(camera_node, ['inputs matched'], MATCH_TIMEOUT)
+            wait_for_log(comparison, ['ground truth matched'], MATCH_TIMEOUT)
             wait_for_log(vision_node, ['tracking the markers'], MATCH_TIMEOUT)
             if bag_dir is None:
                 bag_dir = Path('bags') / time.strftime('%Y-%m-%d_%H-%M-%S_demo')
             extra = {'topics': '[' + ','.join(f"'{t}'" for t in record_topics) + ']'} \
                 if record_topics else {}
-            recorder = launch('recorder', output=str(bag_dir), **extra)
-            wait_for_log(recorder, [f'recording {t} ' for t in DOWNSTREAM_TOPICS
-                                    if record_topics is None or t in record_topics],
-                         MATCH_TIMEOUT)
-        # Every topic needs a subscriber before the first step: the recorder's, or with no
-        # recorder the camera's and comparison's (then only /saw/pose and /saw/joint_states).
-        simulator = launch('simulator', duration=float(duration),
-                           real_time_factor=float(real_time_factor),
-                           wait_for_subscribers=1 if record else 0, **scenario)
+            launch('recorder', output=str(bag_dir), **extra)
         limit = timeout if timeout is not None else 60.0 + 3.0 * duration / max(
             real_time_factor, 0.1)
         deadline = time.monotonic() + limit

@@ -21,6 +21,7 @@ from typing import List
 
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState
@@ -176,10 +177,16 @@ class CameraNode(Node):
         in_qos = with_depth(STREAM_QOS, INPUT_DEPTH)
         self._pub_image = self.create_publisher(Image, '/saw/camera/image_raw', out_qos)
         self._pub_info = self.create_publisher(CameraInfo, '/saw/camera/camera_info', out_qos)
-        self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
-                                 raw=True)
-        self.create_subscription(JointState, p['joint_states_topic'], self._on_joints_raw,
-                                 in_qos, raw=True)
+        self._inputs = (
+            self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
+                                     raw=True),
+            self.create_subscription(JointState, p['joint_states_topic'], self._on_joints_raw,
+                                     in_qos, raw=True))
+        # 'inputs matched' once both inputs have a publisher: from then on no input is missed
+        # (run_pipeline waits for this line before letting the simulator start).
+        # (A steady clock: with use_sim_time the node's clock stands still until /clock runs.)
+        self._match_timer = self.create_timer(0.05, self._report_matched,
+                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f'camera {camera.width}x{camera.height} at {self.fps:g} fps of simulated time, '
             f'{camera.scale:g} px/m (f = {camera.focal:g} px), slope '
@@ -199,6 +206,12 @@ class CameraNode(Node):
         return info
 
     # -- inputs --------------------------------------------------------------------------------
+    def _report_matched(self) -> None:
+        if all(sub.get_publisher_count() > 0 for sub in self._inputs):
+            self.get_logger().info('inputs matched')
+            self._match_timer.cancel()
+            self.destroy_timer(self._match_timer)
+
     def _on_pose(self, msg: PoseStamped) -> None:
         """A deserialised pose (same as the raw path; for callers holding messages)."""
         p = msg.pose.position

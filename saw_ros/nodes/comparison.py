@@ -75,8 +75,10 @@ class ComparisonNode(Node):
         self._last_truth_wall = None
         self._last_truth = None          # (t, x) of the latest pose
         self.publisher = self.create_publisher(DiagnosticArray, '/saw/comparison', LATCHED_QOS)
-        self.create_subscription(PoseStamped, '/saw/pose', self._on_truth,
-                                 with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
+        self._truth_sub = self.create_subscription(PoseStamped, '/saw/pose', self._on_truth,
+                                                   with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
+        # 'ground truth matched' once /saw/pose has a publisher (run_pipeline waits for it).
+        self._match_timer = self.create_timer(0.05, self._report_matched, clock=self._wall)
         self.create_subscription(PoseStamped, '/saw/tracking/pose', self._on_tracked, TRACK_QOS)
         self.create_subscription(ParameterEvent, '/parameter_events', self._on_parameter_event,
                                  QoSProfile(depth=100))
@@ -127,6 +129,12 @@ class ComparisonNode(Node):
         self.comparator.frequency = self.scenario.frequency
 
     # -- data --------------------------------------------------------------------------------
+    def _report_matched(self):
+        if self._truth_sub.get_publisher_count() > 0:
+            self.get_logger().info('ground truth matched')
+            self._match_timer.cancel()
+            self.destroy_timer(self._match_timer)
+
     def _on_truth(self, data: bytes):
         t, x, _y, _theta = cdr.pose_stamped(data)
         self._last_truth = (t, x)
