@@ -218,38 +218,31 @@ def _plot(results, summary, paths) -> None:
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    voltages = sorted({r.voltage for r in results})
-    slopes = sorted({r.slope_deg for r in results})
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for i, v in enumerate(voltages):
-        rows = [r for r in results if r.voltage == v]
-        x = [r.slope_deg for r in rows]
-        a1.plot(x, [100 * r.v_tracked for r in rows], 'o', color=f'C{i}', label=f'{v:g} V')
-        if v in summary['speed_vs_slope_fits']:
-            a, b, r2 = summary['speed_vs_slope_fits'][v]
-            a1.plot(x, [100 * (a * s + b) for s in x], '-', color=f'C{i}', lw=1,
-                    label=f'fit R$^2$={r2:.3f}')
-    a1.set_xlabel('slope (deg)')
-    a1.set_ylabel('tracked speed (cm/s)')
-    a1.set_title('(A) speed against slope')
-    a1.legend(fontsize=7, ncol=2)
-    for i, s in enumerate(slopes):
-        rows = [r for r in results if r.slope_deg == s]
-        x = [r.voltage for r in rows]
-        a2.plot(x, [100 * r.v_tracked for r in rows], 'o', color=f'C{i}', label=f'{s:g} deg')
-        if s in summary['speed_vs_voltage_fits']:
-            a, b, r2 = summary['speed_vs_voltage_fits'][s]
-            a2.plot(x, [100 * (a * v + b) for v in x], '-', color=f'C{i}', lw=1,
-                    label=f'fit R$^2$={r2:.3f}')
+    panels = ((a1, 'voltage', 'slope_deg', summary['speed_vs_slope_fits'], '{:g} V',
+               'slope (deg)', '(A) speed against slope'),
+              (a2, 'slope_deg', 'voltage', summary['speed_vs_voltage_fits'], '{:g} deg',
+               'motor voltage (V)', '(B) speed against voltage'))
+    for ax, group, along, fits, label, xlabel, title in panels:
+        for i, key in enumerate(sorted({getattr(r, group) for r in results})):
+            rows = [r for r in results if getattr(r, group) == key]
+            x = [getattr(r, along) for r in rows]
+            ax.plot(x, [100 * r.v_tracked for r in rows], 'o', color=f'C{i}',
+                    label=label.format(key))
+            if key in fits:
+                a, b, r2 = fits[key]
+                ax.plot(x, [100 * (a * u + b) for u in x], '-', color=f'C{i}', lw=1,
+                        label=f'fit R$^2$={r2:.3f}')
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel('tracked speed (cm/s)')
+        ax.set_title(title)
     refs = [r for r in results if math.isfinite(r.reference_speed)]
     for r in refs:
         a2.plot(r.voltage, 100 * r.reference_speed, 'k*', ms=10)
     if refs:
         a2.plot([], [], 'k*', label='paper, measured')
-    a2.set_xlabel('motor voltage (V)')
-    a2.set_ylabel('tracked speed (cm/s)')
-    a2.set_title('(B) speed against voltage')
-    a2.legend(fontsize=7, ncol=2)
+    for ax in (a1, a2):
+        ax.legend(fontsize=7, ncol=2)
     fig.suptitle('Figure 17: speeds of the validation campaign (virtual camera + tracker)')
     fig.tight_layout()
     fig.savefig(paths['figure17'], dpi=100)

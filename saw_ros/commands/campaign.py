@@ -5,7 +5,7 @@ comparison (Figure 18).
 
 examples:
   saw-ros campaign                                   # the paper's 20 conditions -> out/campaign
-  saw-ros campaign --slopes -20,0,20 --voltages 6,7 --out /tmp/c
+  saw-ros campaign --slopes=-20,0,20 --voltages 6,7 --out /tmp/c   # "=" before negatives
   saw-ros campaign --set motor.hz_per_volt=0.22      # calibrate the motor
 """
 import sys
@@ -32,7 +32,8 @@ def _numbers(text, name):
 
 def add_arguments(p):
     p.add_argument('--slopes', default=','.join(f'{s:g}' for s in PAPER_SLOPES_DEG),
-                   help='slopes in degrees, comma-separated (default: -20,-10,0,10,20)')
+                   help='slopes in degrees, comma-separated; write --slopes=-20,0 when the list starts '
+                   'with a minus (default: -20,-10,0,10,20)')
     p.add_argument('--voltages', default=','.join(f'{v:g}' for v in PAPER_VOLTAGES),
                    help='motor voltages, comma-separated (default: 4,5,6,7)')
     p.add_argument('--out', type=Path, default=Path('out/campaign'), help='output folder')
