@@ -16,8 +16,9 @@ A rung is sustained when ALL of these hold (N = duration / dt steps, F = 60 x du
 - the comparison's truth_samples == N, tracked_samples == the ok frames, and it reached
   steady state;
 - the simulated time advanced at least 97 % as fast as asked (first to last /clock receive time
-  in the bag) and the last image was received at most ``MAX_LAG`` s of wall time after the
-  simulator's last step (the camera and the tracker kept up with real time, not just finished).
+  in the bag) and the last frame's tracking status was received at most ``MAX_LAG`` s of wall
+  time after the simulator's last step (camera and tracker kept up with real time, not just
+  finished).
 
 ``pipeline_max_realtime_factor`` is the highest factor of the ladder sustained (the ladder
 starts at 1.0 and climbs until a rung fails; when 1.0 fails it steps down instead; 0 if none),
@@ -44,7 +45,7 @@ QUICK_DURATION = 5.0
 UP = (1.0, 1.25, 1.5, 2.0)
 DOWN = (0.75, 0.5, 0.25)
 FPS = 60.0
-MAX_LAG = 1.0           # s of wall time the last image may arrive after the last step
+MAX_LAG = 1.0           # s of wall time the last tracking status may come after the last step
 STREAMS = ('/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
            '/saw/joint_states')
 NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder')
@@ -187,14 +188,15 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
         clock[-1] > clock[0] else 0.0
     if achieved < 0.97 * rtf:
         problems.append(f'simulated time ran at {achieved:.3f} x real time')
-    images = log_times.get('/saw/camera/image_raw') or log_times.get('/saw/camera/camera_info',
-                                                                     [])
-    lag = (images[-1] - clock[-1]) * 1e-9 if images and clock else float('inf')
+    # The end of the camera -> tracker chain (the recorder's own lag on the 2.7 MB images, up
+    # to 2.4 s at rtf 0.5, loses nothing and is not counted).
+    tracked = log_times.get('/saw/tracking/status', [])
+    lag = (tracked[-1] - clock[-1]) * 1e-9 if tracked and clock else float('inf')
     if lag > MAX_LAG:
-        problems.append(f'last image {lag:.2f} s after the last step')
+        problems.append(f'last tracking status {lag:.2f} s after the last step')
     total = sum(lost.values())
     return {'rtf': rtf, 'lost': total, 'lost_by_topic': {k: v for k, v in lost.items() if v},
-            'achieved_rtf': round(achieved, 3), 'image_lag_s': round(lag, 3),
+            'achieved_rtf': round(achieved, 3), 'tracking_lag_s': round(lag, 3),
             'ok_frames': ok_frames, 'problems': problems,
             **({'note': problems_note} if problems_note else {}),
             'sustained': total == 0 and not problems,
