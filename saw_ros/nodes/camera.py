@@ -34,8 +34,8 @@ from ..ros_params import ScenarioParameters, accept_integers_for_doubles
 from ..vision.camera import CameraModel
 from ..vision.render import Renderer, RenderOptions, RobotPose
 from ..vision.video import VideoError, VideoWriter
-from .common import (IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, INPUT_DEPTH, STREAM_QOS, NodeFailure,
-                     run_node, with_depth)
+from .common import (INPUT_DEPTH, STREAM_QOS, NodeFailure, image_publisher_qos, run_node,
+                     with_depth)
 
 NS = 1_000_000_000
 KEEP = 2.0          # s of simulated time kept in the pose buffers
@@ -173,7 +173,7 @@ class CameraNode(Node):
         self._image_cdr = cdr.ImageCdr(camera.width, camera.height, 'bgr8', camera.width * 3,
                                        self.frame_id)
         self._helix = cdr.JointPosition('helix')
-        out_qos = with_depth(IMAGE_QOS, IMAGE_PUBLISHER_DEPTH)
+        out_qos = image_publisher_qos()
         in_qos = with_depth(STREAM_QOS, INPUT_DEPTH)
         self._pub_image = self.create_publisher(Image, '/saw/camera/image_raw', out_qos)
         self._pub_info = self.create_publisher(CameraInfo, '/saw/camera/camera_info', out_qos)

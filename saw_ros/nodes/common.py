@@ -41,6 +41,16 @@ INPUT_DEPTH = 1000
 # Publishers of camera images and infos keep 1 s of history at 60 fps: a reliable reader that
 # falls behind is repaired from the writer's history (cf. the simulator's PUBLISHER_DEPTH).
 IMAGE_PUBLISHER_DEPTH = 60
+
+
+def image_publisher_qos() -> QoSProfile:
+    """IMAGE_QOS offered transient-local with IMAGE_PUBLISHER_DEPTH of history: compatible
+    with every volatile reader, and a recorder (which asks for transient-local when all
+    publishers offer it) that matches late still gets the last second of frames (the recorder's
+    image participant matched 0.1-0.5 s after the simulator had started: first frames lost)."""
+    return QoSProfile(history=IMAGE_QOS.history, depth=IMAGE_PUBLISHER_DEPTH,
+                      reliability=IMAGE_QOS.reliability,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Low-rate reports (comparison, status): late joiners get the last one.
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
