@@ -70,6 +70,19 @@ def _tail(path: Path, lines: int = 15) -> str:
         return ''
 
 
+# What the graph's recorder records by default: every topic of the graph except the raw camera
+# frames, which camera.mp4 keeps. Recording 166 MB/s of raw 1280x720 frames as well costs the
+# recorder about 0.3 of a core more and halves the real-time factor the five nodes sustain on two
+# cores without losing a message (0.5 instead of about 1.0, measured with
+# `python -m saw_ros.benchmarks.pipeline`). Pass ``record_topics=ALL_TOPICS`` to keep them.
+RECORDED_TOPICS = ['/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
+                   '/saw/joint_states', '/saw/camera/camera_info', '/saw/tracking/pose',
+                   '/saw/tracking/front', '/saw/tracking/back', '/saw/tracking/twist',
+                   '/saw/tracking/twist_smoothed', '/saw/tracking/steady_speed',
+                   '/saw/tracking/status', '/saw/comparison']
+ALL_TOPICS = RECORDED_TOPICS + ['/saw/camera/image_raw']
+
+
 def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float = 1.0,
                  scenario: Optional[Dict[str, object]] = None, record: bool = True,
                  bag_dir: Optional[Path] = None, video: bool = True,
@@ -78,7 +91,7 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                  progress=None, record_topics: Optional[List[str]] = None) -> PipelineRun:
     """Run the graph once; always stops every process it started (also on Ctrl-C).
 
-    ``record_topics``: what the recorder records (default: its own default, every topic).
+    ``record_topics``: what the recorder records (default ``RECORDED_TOPICS``).
     """
     out_dir = Path(out_dir)
     logs = out_dir / 'logs'
@@ -142,8 +155,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             wait_for_log(vision_node, ['tracking the markers'], MATCH_TIMEOUT)
             if bag_dir is None:
                 bag_dir = Path('bags') / time.strftime('%Y-%m-%d_%H-%M-%S_demo')
-            extra = {'topics': '[' + ','.join(f"'{t}'" for t in record_topics) + ']'} \
-                if record_topics else {}
+            extra = {'topics': '[' + ','.join(f"'{t}'" for t in (
+                record_topics or RECORDED_TOPICS)) + ']'}
             launch('recorder', output=str(bag_dir), **extra)
         limit = timeout if timeout is not None else 60.0 + 3.0 * duration / max(
             real_time_factor, 0.1)

@@ -2,7 +2,8 @@
 comparison and recorder (five processes, ``saw_ros.pipeline.run_pipeline``) lose no message.
 
 Each rung of a ladder of real-time factors runs the real graph for ``DURATION`` s of simulated
-time (the default scenario, video on, the recorder on every topic) and checks the artefacts.
+time (the default scenario, video on, the recorder on ``pipeline.RECORDED_TOPICS``: every
+topic but the raw frames, as the main job runs it) and checks the artefacts.
 A rung is sustained when ALL of these hold (N = duration / dt steps, F = 60 x duration frames):
 
 - every process exited 0 and the simulator never reported falling behind real time;
@@ -43,7 +44,7 @@ KEYS = ('pipeline_max_realtime_factor', 'pipeline_lost_messages', 'pipeline_cpu_
 DURATION = 6.0          # s of simulated time per rung (steady state is reached near 2-3 s)
 QUICK_DURATION = 5.0
 UP = (1.0, 1.25, 1.5, 2.0)
-DOWN = (0.75, 0.5, 0.25)
+DOWN = (0.9, 0.75, 0.5, 0.25)
 FPS = 60.0
 MAX_LAG = 1.0           # s of wall time the last tracking status may come after the last step
 STREAMS = ('/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
