@@ -21,29 +21,6 @@ from .process import ManagedProcess, isolated_ros_env, node_command
 MATCH_TIMEOUT = 20.0     # s; then the run goes on anyway (and the bench reports what was lost)
 
 
-# Fast DDS discovery for the run's processes: its announcements are unreliable datagrams and a
-# participant that misses the initial burst (5 x 100 ms) is found at the next periodic one, 3 s
-# later. On a busy machine that happened several times a run (the camera found the simulator
-# 2.2 s late, the recorder's image participant the camera 2.5 s late: their messages lost). More
-# initial announcements and a 0.5 s period bound it; the traffic is a few datagrams a second.
-DISCOVERY_PROFILE = '''<?xml version="1.0" encoding="UTF-8" ?>
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <participant profile_name="saw_ros_pipeline" is_default_profile="true">
-    <rtps>
-      <builtin>
-        <discovery_config>
-          <initialAnnouncements>
-            <count>20</count>
-            <period><sec>0</sec><nanosec>50000000</nanosec></period>
-          </initialAnnouncements>
-          <leaseAnnouncement><sec>0</sec><nanosec>500000000</nanosec></leaseAnnouncement>
-        </discovery_config>
-      </builtin>
-    </rtps>
-  </participant>
-</profiles>
-'''
-
 
 class PipelineError(RuntimeError):
     """A node of the graph failed (the message names it and quotes its log)."""
@@ -97,10 +74,6 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     logs = out_dir / 'logs'
     out_dir.mkdir(parents=True, exist_ok=True)
     env = isolated_ros_env()
-    if not (env.get('FASTRTPS_DEFAULT_PROFILES_FILE') or env.get('FASTDDS_DEFAULT_PROFILES_FILE')):
-        profile = out_dir / 'fastdds_discovery.xml'
-        profile.write_text(DISCOVERY_PROFILE)
-        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(profile.resolve())
     scenario = dict(scenario or {})
     report_path = out_dir / 'comparison.json'
     if report_path.exists():

@@ -123,7 +123,9 @@ class ComparisonNode(Node):
         if self.scenario_values and merged != self.scenario_values:
             # New conditions: a new steady state to wait for.
             self.comparator.reset()
-            self.get_logger().info('simulator parameters changed: comparison restarted')
+            changed = sorted(k for k in merged if merged[k] != self.scenario_values.get(k))
+            self.get_logger().info(f'simulator parameters changed ({", ".join(changed)}): '
+                                   f'comparison restarted')
         self.scenario_values = merged
         self.comparator.robot = self.scenario.robot
         self.comparator.frequency = self.scenario.frequency
@@ -137,6 +139,9 @@ class ComparisonNode(Node):
 
     def _on_truth(self, data: bytes):
         t, x, _y, _theta = cdr.pose_stamped(data)
+        if self._last_truth is not None and t < self._last_truth[0]:
+            self.get_logger().warn(f'simulated time went back from {self._last_truth[0]:.3f} s '
+                                   f'to {t:.3f} s (a replay restarted?): comparison restarted')
         self._last_truth = (t, x)
         self._last_truth_wall = self._wall.now()
         self.comparator.add_truth(t, x)
