@@ -21,14 +21,7 @@ from saw_ros.process import ManagedProcess, node_command, wait_for
 
 pytestmark = pytest.mark.ros
 
-TOPICS = {
-    '/clock': ('rosgraph_msgs.msg', 'Clock'),
-    '/saw/pose': ('geometry_msgs.msg', 'PoseStamped'),
-    '/saw/twist': ('geometry_msgs.msg', 'TwistStamped'),
-    '/saw/contacts': ('sensor_msgs.msg', 'PointCloud2'),
-    '/saw/contact_wrench': ('geometry_msgs.msg', 'WrenchStamped'),
-    '/saw/joint_states': ('sensor_msgs.msg', 'JointState'),
-}
+from saw_ros.nodes.simulator import TOPICS  # noqa: E402  (topic -> message class)
 MS = 1_000_000
 # Real time: 6000 messages/s, which one raw subscriber keeps up with on a shared 2-core machine.
 # (real_time_factor 0 outruns any Python subscriber of all six topics: see the node's docstring.)
@@ -36,9 +29,7 @@ RTF = 1.0
 
 
 def _type(topic):
-    import importlib
-    module, name = TOPICS[topic]
-    return getattr(importlib.import_module(module), name)
+    return TOPICS[topic]
 
 
 def stamp_of(raw: bytes) -> int:

@@ -22,19 +22,10 @@ from pathlib import Path
 KEYS = ('sim_max_realtime_factor', 'sim_lost_messages')
 SUBSCRIBER_DEPTH = 1000     # 1 s at 1 kHz: rides out the scheduling hiccups of a shared machine
 LADDER = (1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
-TOPICS = {
-    '/clock': ('rosgraph_msgs.msg', 'Clock'),
-    '/saw/pose': ('geometry_msgs.msg', 'PoseStamped'),
-    '/saw/twist': ('geometry_msgs.msg', 'TwistStamped'),
-    '/saw/contacts': ('sensor_msgs.msg', 'PointCloud2'),
-    '/saw/contact_wrench': ('geometry_msgs.msg', 'WrenchStamped'),
-    '/saw/joint_states': ('sensor_msgs.msg', 'JointState'),
-}
 
 
 def subscriber(steps: int, timeout: float) -> int:
     """Child process: subscribe to every topic, count stamps, print one JSON line, exit."""
-    import importlib
     import struct
 
     import rclpy
@@ -46,6 +37,7 @@ def subscriber(steps: int, timeout: float) -> int:
     node = Node('bench_subscriber')
     unpack = struct.Struct('<iI').unpack_from
     step_ns = 1_000_000
+    from saw_ros.nodes.simulator import TOPICS
     state = {t: {'count': 0, 'last': 0, 'bad': 0, 'first': 0, 'gaps': 0} for t in TOPICS}
     wall = {'first': None, 'last': None}
 
@@ -70,8 +62,7 @@ def subscriber(steps: int, timeout: float) -> int:
             wall['last'] = now
         return callback
 
-    for topic, (module, name) in TOPICS.items():
-        cls = getattr(importlib.import_module(module), name)
+    for topic, cls in TOPICS.items():
         qos = QoSProfile(depth=SUBSCRIBER_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
         node.create_subscription(cls, topic, make_callback(topic), qos, raw=True)
     # rclpy's EventsExecutor (C++, Jazzy: experimental) takes messages several times faster than

@@ -46,6 +46,10 @@ from ..core.params import ParameterError
 from ..ros_params import ScenarioParameters, accept_integers_for_doubles
 from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node
 
+# What the node publishes every step, in this order (tests and benchmarks subscribe from here).
+TOPICS = {'/clock': Clock, '/saw/pose': PoseStamped, '/saw/twist': TwistStamped,
+          '/saw/contacts': PointCloud2, '/saw/contact_wrench': WrenchStamped,
+          '/saw/joint_states': JointState}
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
 MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
@@ -115,15 +119,12 @@ class SimulatorNode(Node):
         self._joints = conv.JointTable(scenario.robot)
         self._joint_names = conv.joint_names(scenario.robot.wave_links)
 
-        self._pub_clock = self.create_publisher(Clock, '/clock', deeper(CLOCK_QOS))
-        stream = deeper(STREAM_QOS)
-        self._pub_pose = self.create_publisher(PoseStamped, '/saw/pose', stream)
-        self._pub_twist = self.create_publisher(TwistStamped, '/saw/twist', stream)
-        self._pub_contacts = self.create_publisher(PointCloud2, '/saw/contacts', stream)
-        self._pub_wrench = self.create_publisher(WrenchStamped, '/saw/contact_wrench', stream)
-        self._pub_joints = self.create_publisher(JointState, '/saw/joint_states', stream)
-        self._publishers_all = (self._pub_clock, self._pub_pose, self._pub_twist,
-                                self._pub_contacts, self._pub_wrench, self._pub_joints)
+        self._publishers_all = tuple(
+            self.create_publisher(msg_type, topic, deeper(
+                CLOCK_QOS if topic == '/clock' else STREAM_QOS))
+            for topic, msg_type in TOPICS.items())
+        (self._pub_clock, self._pub_pose, self._pub_twist, self._pub_contacts, self._pub_wrench,
+         self._pub_joints) = self._publishers_all
         self._contacts_cdr = conv.ContactsCdr()
         self._joints_cdr = conv.JointStateCdr(self._joint_names)
 
