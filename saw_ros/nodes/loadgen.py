@@ -21,8 +21,8 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
 
-from saw_ros.nodes.common import CLOCK_QOS, IMAGE_QOS, STREAM_QOS, run_node
-from saw_ros.nodes.simulator import PUBLISHER_DEPTH, deeper
+from saw_ros.nodes.common import CLOCK_QOS, IMAGE_QOS, STREAM_QOS, run_node, with_depth
+from saw_ros.nodes.simulator import PUBLISHER_DEPTH
 
 # Images: 2 s at 60 fps. A KEEP_LAST writer overwrites samples not yet acknowledged when it
 # publishes a burst longer than its depth, and this node bursts to catch up its schedule after
@@ -65,7 +65,7 @@ class LoadGen(Node):
                    (f'{prefix}/contact_wrench', WrenchStamped, WrenchStamped(), STREAM_QOS),
                    (f'{prefix}/joint_states', JointState, joints, STREAM_QOS)][:int(p['streams'])]
         depth = int(p['publisher_depth'])
-        self.streams = [(topic, self.create_publisher(t, topic, deeper(qos, depth) if depth > 0
+        self.streams = [(topic, self.create_publisher(t, topic, with_depth(qos, depth) if depth > 0
                                                       else qos), msg)
                         for topic, t, msg, qos in streams]
         self.image = None
@@ -76,7 +76,7 @@ class LoadGen(Node):
             img.data = bytes(range(256)) * (3 * w * h // 256) + bytes(3 * w * h % 256)
             self.image = (f'{prefix}/camera/image_raw',
                           self._image_node().create_publisher(Image, f'{prefix}/camera/image_raw',
-                                                deeper(IMAGE_QOS, int(p['image_depth']))),
+                                                with_depth(IMAGE_QOS, int(p['image_depth']))),
                           img)
         self.counts = {topic: 0 for topic, _, _ in self.streams}
         if self.image:

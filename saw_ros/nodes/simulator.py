@@ -35,7 +35,6 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from std_srvs.srv import Trigger
@@ -44,7 +43,7 @@ from .. import conversions as conv
 from ..core.dynamics import DivergenceError, Simulator
 from ..core.params import ParameterError
 from ..ros_params import ScenarioParameters, accept_integers_for_doubles
-from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node
+from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node, with_depth
 
 # What the node publishes every step, in this order (tests and benchmarks subscribe from here).
 TOPICS = {'/clock': Clock, '/saw/pose': PoseStamped, '/saw/twist': TwistStamped,
@@ -59,12 +58,6 @@ MAX_BATCH = 50               # steps per wake-up: bursts well below the queue de
 # from it (Fast DDS data sharing), so a reader further behind than the writer's depth loses
 # /clock ticks however deep its own queue is. (Depth does not affect QoS compatibility.)
 PUBLISHER_DEPTH = 1000
-
-
-def deeper(qos: QoSProfile, depth: int = PUBLISHER_DEPTH) -> QoSProfile:
-    return QoSProfile(history=qos.history, depth=depth, reliability=qos.reliability,
-                      durability=qos.durability)
-
 
 FLUSH_TIMEOUT = 1.0          # s to wait, at exit, for subscribers to acknowledge the last steps
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
@@ -120,8 +113,8 @@ class SimulatorNode(Node):
         self._joint_names = conv.joint_names(scenario.robot.wave_links)
 
         self._publishers_all = tuple(
-            self.create_publisher(msg_type, topic, deeper(
-                CLOCK_QOS if topic == '/clock' else STREAM_QOS))
+            self.create_publisher(msg_type, topic, with_depth(
+                CLOCK_QOS if topic == '/clock' else STREAM_QOS, PUBLISHER_DEPTH))
             for topic, msg_type in TOPICS.items())
         (self._pub_clock, self._pub_pose, self._pub_twist, self._pub_contacts, self._pub_wrench,
          self._pub_joints) = self._publishers_all
