@@ -3,6 +3,8 @@
 Deserialising a full message costs most of a Python subscriber's time at 1 kHz; a raw
 subscription plus struct.unpack_from costs a fraction of it (shared/docs/ros-notes.md).
 Layout: XCDR1, a 4-byte encapsulation header, then fields aligned to their size from there.
+The other way round: ``CdrWriter`` encodes the constant parts of messages published as bytes
+(``ImageCdr`` here, the simulator's encoders in ``conversions``).
 """
 from __future__ import annotations
 
@@ -137,10 +139,38 @@ class ImageView:
         self.data = view[_HEADER + offset:_HEADER + offset + size]
 
 
-def _cdr_string(text: str) -> bytes:
-    """A CDR string: u32 length (with the NUL), the characters, the NUL (caller aligns to 4)."""
-    raw = text.encode() + b'\0'
-    return _U32_LE.pack(len(raw)) + raw
+ENCAPSULATION = b'\x00\x01\x00\x00'   # CDR, little endian
+
+
+class CdrWriter:
+    """Minimal XCDR1 little-endian writer for the constant parts of encoded messages: alignment
+    is relative to the end of the 4-byte encapsulation header."""
+
+    def __init__(self, offset: int = 0):
+        self.buf = bytearray()
+        self.offset = offset        # position of buf[0] in the message body
+
+    def align(self, size: int) -> 'CdrWriter':
+        self.buf += b'\0' * (-(self.offset + len(self.buf)) % size)
+        return self
+
+    def u8(self, value: int) -> 'CdrWriter':
+        self.buf += struct.pack('<B', value)
+        return self
+
+    def u32(self, value: int) -> 'CdrWriter':
+        self.align(4).buf += struct.pack('<I', value)
+        return self
+
+    def string(self, text: str) -> 'CdrWriter':
+        """u32 length (with the NUL), the characters, the NUL."""
+        data = text.encode() + b'\0'
+        self.u32(len(data)).buf += data
+        return self
+
+    @property
+    def end(self) -> int:
+        return self.offset + len(self.buf)
 
 
 class ImageCdr:
@@ -148,17 +178,10 @@ class ImageCdr:
     copy of the pixels: ``encoder(pixels, stamp_ns)`` -> bytes ready for ``publish``."""
 
     def __init__(self, width: int, height: int, encoding: str, step: int, frame_id: str):
-        body = bytearray()
-        body += _cdr_string(frame_id)                   # after the stamp (8 bytes)
-        offset = 8 + len(body)
-        body += b'\0' * (-offset % 4)
-        body += struct.pack('<II', height, width)
-        body += _cdr_string(encoding)
-        body += b'\0'                                      # is_bigendian
-        offset = 8 + len(body)
-        body += b'\0' * (-offset % 4)
-        body += struct.pack('<I', step)
-        self._head = bytes(body)
+        w = CdrWriter(8).string(frame_id)               # after the stamp (8 bytes)
+        w.u32(height).u32(width).string(encoding).u8(0)  # u8: is_bigendian
+        w.u32(step)
+        self._head = bytes(w.buf)
         self._size = step * height
 
     def __call__(self, pixels, nanoseconds: int) -> bytes:
@@ -166,5 +189,5 @@ class ImageCdr:
         if view.nbytes != self._size:
             raise ValueError(f'{view.nbytes} pixel bytes, expected {self._size}')
         sec, nanosec = divmod(nanoseconds, 1_000_000_000)
-        return b''.join((b'\0\x01\0\0', _STAMP_LE.pack(sec, nanosec), self._head,
+        return b''.join((ENCAPSULATION, _STAMP_LE.pack(sec, nanosec), self._head,
                          _U32_LE.pack(self._size), view))

@@ -22,6 +22,8 @@ from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 
+from .cdr import ENCAPSULATION, CdrWriter
+
 SURFACE_FRAME = 'surface'
 BODY_FRAME = 'base_link'
 NS_PER_S = 1_000_000_000
@@ -233,42 +235,9 @@ class JointTable:
 # names, PointField list) are encoded once. tests/test_conversions.py checks every encoder
 # against rclpy's own serialization.
 
-_ENCAPSULATION = b'\x00\x01\x00\x00'   # CDR, little endian
-
-
-class _CdrWriter:
-    """Minimal XCDR1 writer for constant parts: alignment is relative to the end of the
-    4-byte encapsulation header."""
-
-    def __init__(self, offset: int = 0):
-        self.buf = bytearray()
-        self.offset = offset        # position of buf[0] in the message body
-
-    def align(self, size: int) -> '_CdrWriter':
-        self.buf += b'\0' * (-(self.offset + len(self.buf)) % size)
-        return self
-
-    def u8(self, value: int):
-        self.buf += struct.pack('<B', value)
-        return self
-
-    def u32(self, value: int):
-        self.align(4).buf += struct.pack('<I', value)
-        return self
-
-    def string(self, text: str):
-        data = text.encode() + b'\0'
-        self.u32(len(data)).buf += data
-        return self
-
-    @property
-    def end(self) -> int:
-        return self.offset + len(self.buf)
-
-
 def _frame_block(frame: str, then_align: int) -> bytes:
     """frame_id string after the 8-byte stamp, padded for the next field's alignment."""
-    return bytes(_CdrWriter(8).string(frame).align(then_align).buf)
+    return bytes(CdrWriter(8).string(frame).align(then_align).buf)
 
 
 _CLOCK = struct.Struct('<4siI')
@@ -284,22 +253,22 @@ def _split_ns(nanoseconds: int):
 
 
 def clock_cdr(nanoseconds: int) -> bytes:
-    return _CLOCK.pack(_ENCAPSULATION, *_split_ns(nanoseconds))
+    return _CLOCK.pack(ENCAPSULATION, *_split_ns(nanoseconds))
 
 
 def pose_cdr(x: float, y: float, theta: float, nanoseconds: int) -> bytes:
     half = 0.5 * theta
-    return _POSE.pack(_ENCAPSULATION, *_split_ns(nanoseconds), _SURFACE_BLOCK, x, y, 0.0,
+    return _POSE.pack(ENCAPSULATION, *_split_ns(nanoseconds), _SURFACE_BLOCK, x, y, 0.0,
                       0.0, 0.0, math.sin(half), math.cos(half))
 
 
 def twist_cdr(vx: float, vy: float, w: float, nanoseconds: int) -> bytes:
-    return _TWIST.pack(_ENCAPSULATION, *_split_ns(nanoseconds), _SURFACE_BLOCK, vx, vy, 0.0,
+    return _TWIST.pack(ENCAPSULATION, *_split_ns(nanoseconds), _SURFACE_BLOCK, vx, vy, 0.0,
                        0.0, 0.0, w)
 
 
 def wrench_cdr(fx: float, fy: float, mz: float, nanoseconds: int) -> bytes:
-    return _WRENCH.pack(_ENCAPSULATION, *_split_ns(nanoseconds), _BODY_BLOCK, fx, fy, 0.0,
+    return _WRENCH.pack(ENCAPSULATION, *_split_ns(nanoseconds), _BODY_BLOCK, fx, fy, 0.0,
                         0.0, 0.0, mz)
 
 
@@ -308,10 +277,10 @@ class ContactsCdr:
     list and point step, row_step, data, is_dense."""
 
     def __init__(self):
-        w = _CdrWriter(8).string(SURFACE_FRAME)
+        w = CdrWriter(8).string(SURFACE_FRAME)
         w.u32(1)                                   # height
         self._head = bytes(w.buf)
-        w = _CdrWriter(w.end + 4)                  # after width
+        w = CdrWriter(w.end + 4)                  # after width
         w.u32(len(CONTACT_FIELDS))
         for f in CONTACT_FIELDS:
             w.string(f.name).u32(f.offset).u8(f.datatype).u32(f.count)
@@ -324,7 +293,7 @@ class ContactsCdr:
     def __call__(self, points: np.ndarray, nanoseconds: int) -> bytes:
         data = np.ascontiguousarray(points, CONTACT_DTYPE).tobytes()
         n = len(points)
-        return b''.join((_CLOCK.pack(_ENCAPSULATION, *_split_ns(nanoseconds)), self._head,
+        return b''.join((_CLOCK.pack(ENCAPSULATION, *_split_ns(nanoseconds)), self._head,
                          struct.pack('<I', n), self._fields,
                          struct.pack('<II', n * self._step, len(data)), data, b'\x01'))
 
@@ -335,16 +304,16 @@ class JointStateCdr:
 
     def __init__(self, names: Sequence[str]):
         self.count = len(names)
-        w = _CdrWriter(8).string(BODY_FRAME)
+        w = CdrWriter(8).string(BODY_FRAME)
         w.u32(len(names))
         for name in names:
             w.string(name)
         w.u32(len(names)).align(8)
         self._head = bytes(w.buf)
         after_position = w.end + 8 * len(names)
-        w = _CdrWriter(after_position).u32(len(names)).align(8)
+        w = CdrWriter(after_position).u32(len(names)).align(8)
         self._middle = bytes(w.buf)
-        w = _CdrWriter(after_position + len(self._middle) + 8 * len(names)).u32(0)
+        w = CdrWriter(after_position + len(self._middle) + 8 * len(names)).u32(0)
         self._tail = bytes(w.buf)
 
     def __call__(self, phase: float, omega: float, angles: np.ndarray, rates: np.ndarray,
@@ -353,5 +322,5 @@ class JointStateCdr:
         velocity = struct.pack('<d', omega) + np.ascontiguousarray(rates, '<f8').tobytes()
         if len(position) != 8 * self.count or len(velocity) != 8 * self.count:
             raise ValueError(f'expected {self.count} joint values')
-        return b''.join((_CLOCK.pack(_ENCAPSULATION, *_split_ns(nanoseconds)), self._head,
+        return b''.join((_CLOCK.pack(ENCAPSULATION, *_split_ns(nanoseconds)), self._head,
                          position, self._middle, velocity, self._tail))
