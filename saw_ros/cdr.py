@@ -21,27 +21,12 @@ def _prefix(data: bytes) -> str:
     return '<' if data[1] == 0x01 else '>'
 
 
-def pose_stamped(data: bytes):
-    """(stamp in s, x, y, pitch about z) of a geometry_msgs/PoseStamped."""
-    e = _prefix(data)
-    sec, nanosec, length = struct.unpack_from(e + 'iII', data, _HEADER)
-    offset = 12 + length
-    offset += -offset % 8                        # doubles align to 8 (from the body start)
-    x, y, _z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, _HEADER + offset)
-    return sec + nanosec * 1e-9, x, y, 2.0 * math.atan2(qz, qw)
-
-
 _STAMP_LE = struct.Struct('<iI')
 _U32_LE = struct.Struct('<I')
 
 
 def _u32(data, e: str, offset: int) -> int:
     return struct.unpack_from(e + 'I', data, _HEADER + offset)[0]
-
-
-def _string_end(data, e: str, offset: int) -> int:
-    """Body offset just past the CDR string that starts (aligned) at body ``offset``."""
-    return offset + 4 + _u32(data, e, offset)
 
 
 def _align(offset: int, size: int) -> int:
@@ -62,6 +47,12 @@ def pose_stamped_ns(data: bytes):
     offset = _align(12 + length, 8)
     x, y, _z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, _HEADER + offset)
     return sec * 1_000_000_000 + nanosec, x, y, 2.0 * math.atan2(qz, qw)
+
+
+def pose_stamped(data: bytes):
+    """(stamp in s, x, y, pitch about z) of a geometry_msgs/PoseStamped."""
+    t, x, y, theta = pose_stamped_ns(data)
+    return t / 1e9, x, y, theta
 
 
 class JointPosition:
