@@ -25,6 +25,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from .. import cdr
+from .. import conversions as conv
 from ..compare import RunComparator, find_reference, load_reference, reference_error
 from ..core.params import Scenario
 from .common import (INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, run_node, spin_events,
@@ -73,7 +74,7 @@ class ComparisonNode(Node):
         self.done = False
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._last_truth_wall = None
-        self._last_truth = None          # (t, x) of the latest pose
+        self._last_truth_ns = None       # stamp of the latest pose
         self.publisher = self.create_publisher(DiagnosticArray, '/saw/comparison', LATCHED_QOS)
         self._truth_sub = self.create_subscription(PoseStamped, '/saw/pose', self._on_truth,
                                                    with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
@@ -138,17 +139,18 @@ class ComparisonNode(Node):
             self.destroy_timer(self._match_timer)
 
     def _on_truth(self, data: bytes):
-        t, x, _y, _theta = cdr.pose_stamped(data)
-        if self._last_truth is not None and t < self._last_truth[0]:
-            self.get_logger().warn(f'simulated time went back from {self._last_truth[0]:.3f} s '
-                                   f'to {t:.3f} s (a replay restarted?): comparison restarted')
-        self._last_truth = (t, x)
+        t_ns, x, _y, _theta = cdr.pose_stamped_ns(data)
+        t = t_ns / 1e9
+        if self._last_truth_ns is not None and t_ns < self._last_truth_ns:
+            self.get_logger().warn(f'simulated time went back from {self._last_truth_ns / 1e9:.3f}'
+                                   f' s to {t:.3f} s (a replay restarted?): comparison restarted')
+        self._last_truth_ns = t_ns
         self._last_truth_wall = self._wall.now()
         self.comparator.add_truth(t, x)
 
     def _on_tracked(self, msg: PoseStamped):
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        self.comparator.add_tracked(t, msg.pose.position.x)
+        self.comparator.add_tracked(conv.stamp_ns(msg.header.stamp) / 1e9,
+                                    msg.pose.position.x)
 
     # -- reports -----------------------------------------------------------------------------
     def _tick(self):
@@ -198,10 +200,8 @@ class ComparisonNode(Node):
                                               'v_theory_m_s', 'truth_samples',
                                               'tracked_samples')]
         msg = DiagnosticArray(status=[status])
-        if self._last_truth is not None:
-            t = self._last_truth[0]
-            msg.header.stamp.sec = int(t)
-            msg.header.stamp.nanosec = int(round((t - int(t)) * 1e9)) % 1_000_000_000
+        if self._last_truth_ns is not None:
+            conv.time_msg(self._last_truth_ns, msg.header.stamp)
         self.publisher.publish(msg)
         if final:
             self.final_sent = True
@@ -212,7 +212,7 @@ class ComparisonNode(Node):
                 Path(path).write_text(json.dumps(values, indent=2, default=str) + '\n')
 
     def close(self):
-        if not self.final_sent and self.scenario_values and self._last_truth is not None:
+        if not self.final_sent and self.scenario_values and self._last_truth_ns is not None:
             self.publish(final=True)
 
 
