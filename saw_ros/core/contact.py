@@ -118,7 +118,8 @@ def contact_step(state: ContactState, penetration, x, law) -> tuple:
     d = np.maximum(penetration, 0.0, out=state._d)
     _hysteresis(state.factor, d, state.depth, law.kn_mean, law.kn_half, law.kn_rate)
     state.depth, state._d = d, state.depth         # keep d; recycle the old buffer
-    if law.exponent == 1.5:
+    # The exponent is a float, or an (S, P) array when the scenarios of a batch differ in it.
+    if isinstance(law.exponent, float) and law.exponent == 1.5:
         fn = np.sqrt(d, out=state.normal)
         fn *= d                                    # d^1.5, three times faster than power()
     else:

@@ -90,3 +90,11 @@ def test_set_scenarios_changes_conditions_at_once_and_keeps_the_state():
     assert sim.q[0, 0] == x
     sim.run(1.0)
     assert abs(sim.q[3, 0]) < 0.01       # the wave stopped: the robot stops
+
+
+def test_batch_may_differ_in_the_hertz_exponent():
+    # The exponent is then an (S, P) array in the contact law, not a scalar.
+    scenarios = [Scenario(), Scenario().with_values({'surface.hertz_exponent': 1.2})]
+    together = simulate(scenarios, 0.5).q
+    np.testing.assert_allclose(together[:, 0], simulate(scenarios[0], 0.5).q[:, 0], rtol=0,
+                               atol=1e-9)
