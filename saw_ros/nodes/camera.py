@@ -29,7 +29,7 @@ from geometry_msgs.msg import PoseStamped
 
 from .. import cdr
 from .. import conversions as conv
-from ..core.params import ParameterError
+from ..core.params import ParameterError, Scenario
 from ..ros_params import ScenarioParameters, accept_integers_for_doubles
 from ..vision.camera import CameraModel
 from ..vision.render import Renderer, RenderOptions, RobotPose
@@ -66,17 +66,12 @@ PARAMETERS = (
 )
 
 
-def ns_to_s(ns: int) -> float:
-    return ns / NS
-
-
 class _Series:
     """Time-stamped samples (stamps in ns, increasing) with linear interpolation."""
 
-    def __init__(self, width: int):
+    def __init__(self):
         self.t: List[int] = []
         self.v: List[tuple] = []
-        self.width = width
 
     def add(self, t: int, values: tuple) -> bool:
         """Append; False (and cleared) when time went backwards (a replay restarted)."""
@@ -120,9 +115,9 @@ class CameraNode(Node):
     def __init__(self, **kwargs):
         super().__init__('camera', **kwargs)
         try:
-            keep = [n for n, _, _ in _scenario_describe() if n.startswith('robot.')] + \
-                ['scenario.gap']
-            exclude = [n for n, _, _ in _scenario_describe() if n not in keep]
+            # Only what the drawing needs: the robot geometry and the gap.
+            exclude = [n for n, _, _ in Scenario().describe()
+                       if not (n.startswith('robot.') or n == 'scenario.gap')]
             self.params = ScenarioParameters(self, exclude=exclude,
                                              frozen={'robot': 'restart the camera',
                                                      'scenario.gap': 'restart the camera'})
@@ -155,8 +150,8 @@ class CameraNode(Node):
         self.frame_id = p['frame_id']
         self.half_exposure_ns = options.exposure / 2.0 * NS
         self.info = self._camera_info()
-        self._poses = _Series(3)
-        self._phases = _Series(1)
+        self._poses = _Series()       # (x, y, theta)
+        self._phases = _Series()      # (helix phase,)
         self._next = None          # index of the next frame
         self.frames = 0
         self.received = {'poses': 0, 'joint_states': 0}
@@ -212,12 +207,6 @@ class CameraNode(Node):
             self._match_timer.cancel()
             self.destroy_timer(self._match_timer)
 
-    def _on_pose(self, msg: PoseStamped) -> None:
-        """A deserialised pose (same as the raw path; for callers holding messages)."""
-        p = msg.pose.position
-        self._add_pose(conv.stamp_ns(msg.header.stamp), p.x, p.y,
-                       conv.yaw_of(msg.pose.orientation))
-
     def _on_pose_raw(self, data: bytes) -> None:
         t, x, y, theta = cdr.pose_stamped_ns(data)
         self._add_pose(t, x, y, theta)
@@ -227,14 +216,6 @@ class CameraNode(Node):
         if not self._poses.add(t, (x, y, theta)):
             self._restart()
         self._render_due()
-
-    def _on_joints(self, msg: JointState) -> None:
-        try:
-            i = msg.name.index('helix')
-        except ValueError:
-            i = None
-        self._add_phase(conv.stamp_ns(msg.header.stamp),
-                        None if i is None or i >= len(msg.position) else msg.position[i])
 
     def _on_joints_raw(self, data: bytes) -> None:
         self._add_phase(*self._helix(data))
@@ -328,15 +309,9 @@ class CameraNode(Node):
               flush=True)
 
 
-def _scenario_describe():
-    from ..core.params import Scenario
-    return list(Scenario().describe())
-
-
 def main(args=None) -> int:
     return run_node(CameraNode, args=args, events=True)
 
 
 if __name__ == '__main__':
-    import sys
     sys.exit(main())
