@@ -69,7 +69,6 @@ class ContactState:
         self.trial = np.zeros(shape)         # the spring force before the Coulomb cap, N
         self.cap = np.zeros(shape)           # mu Fn, N
         self._d = np.zeros(shape)
-        self._work = np.zeros(shape)
 
     @property
     def touching(self):

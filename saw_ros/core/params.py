@@ -258,6 +258,3 @@ class Scenario:
                  for s, c in groups.items()}
         return Scenario(**parts)
 
-
-def parameter_names() -> Tuple[str, ...]:
-    return tuple(Scenario().flat())
