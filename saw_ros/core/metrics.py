@@ -49,6 +49,16 @@ def rms_scale(v, t, frequency: float) -> float:
     return float(np.sqrt(np.mean(tail ** 2)))
 
 
+def velocity_cci(t, q, frequency: float):
+    """(times, {'vx', 'vy', 'w': CCI}) of the velocities of q (n, 6) = x, y, theta, vx, vy, w:
+    vx scaled by its steady mean, vy and w by their steady RMS (module docstring)."""
+    indices = {}
+    for name, col in (('vx', 3), ('vy', 4), ('w', 5)):
+        scale = None if col == 3 else rms_scale(q[:, col], t, frequency)
+        tc, indices[name] = cci(t, q[:, col], frequency, scale)
+    return tc, indices
+
+
 def settling_time(t, index, threshold: float) -> Optional[float]:
     """First time after which the index stays below ``threshold`` to the end (None: never)."""
     index = np.asarray(index)
@@ -119,12 +129,9 @@ def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0) -> RunMetric
         return RunMetrics(frequency, vth, v, float('nan'), None, None, None)
     start = steady_state_start(t, q[:, 3], frequency, min_cycles=min_cycles)
     v = mean_velocity(t, q[:, 0], start if start is not None else t[len(t) // 2], frequency)
+    tc, indices = velocity_cci(t, q, frequency)
     settled = {}
     for threshold in (0.02, 0.002):
-        times = []
-        for col in (3, 4, 5):
-            scale = None if col == 3 else rms_scale(q[:, col], t, frequency)
-            tc, index = cci(t, q[:, col], frequency, scale)
-            times.append(settling_time(tc, index, threshold))
+        times = [settling_time(tc, index, threshold) for index in indices.values()]
         settled[threshold] = None if None in times else max(times)
     return RunMetrics(frequency, vth, v, v / vth, start, settled[0.02], settled[0.002])

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..core import worm as worm_model
 from ..core.dynamics import DivergenceError, simulate
-from ..core.metrics import analyse, cci, rms_scale, settling_time
+from ..core.metrics import analyse, settling_time, velocity_cci
 from ..core.params import Scenario
 from ..core.statics import FIGURE4_CASES, minimal_normal_forces, top_surface_needed_above
 
@@ -113,11 +113,7 @@ def run_timeseries(duration: float = 4.0) -> dict:
     t, q = tr.t, tr.q[:, 0]
     f = sc.frequency
     m = analyse(t, q, sc.robot, f)
-    indices = {}
-    for col, name in ((3, 'vx'), (4, 'vy'), (5, 'w')):
-        scale = None if col == 3 else rms_scale(q[:, col], t, f)
-        tc, index = cci(t, q[:, col], f, scale)
-        indices[name] = index
+    tc, indices = velocity_cci(t, q, f)
     settle = {name: {thr: settling_time(tc, idx, thr) for thr in (0.02, 0.002)}
               for name, idx in indices.items()}
     return {'t': t, 'q': q, 'metrics': m, 'cci_t': tc, 'cci': indices, 'settle': settle,
