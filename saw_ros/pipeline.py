@@ -21,7 +21,6 @@ from .process import ManagedProcess, isolated_ros_env, node_command
 MATCH_TIMEOUT = 20.0     # s; then the run goes on anyway (and the bench reports what was lost)
 
 
-
 class PipelineError(RuntimeError):
     """A node of the graph failed (the message names it and quotes its log)."""
 
@@ -135,10 +134,7 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             real_time_factor, 0.1)
         deadline = time.monotonic() + limit
         while simulator.returncode is None or comparison.returncode is None:
-            for p in nodes:
-                if p.returncode not in (None, 0):
-                    raise PipelineError(f'{p.name} exited with {p.returncode}:\n'
-                                        f'{_tail(p.log_path)}')
+            check_alive()
             if time.monotonic() > deadline:
                 raise PipelineError(f'the run did not finish within {limit:.0f} s; see {logs}')
             if progress is not None:
