@@ -270,11 +270,11 @@ def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[f
     bounds = np.linspace(0, len(scenarios), workers + 1).astype(int)
     jobs = [(scenarios[a:b], duration, record_every, contacts)
             for a, b in zip(bounds[:-1], bounds[1:])]
-    steps_per_job = [int(round(duration / scenarios[0].integration.dt))] * workers
+    steps = int(round(duration / scenarios[0].integration.dt))
     # fork: the children inherit the imported modules and the kinematics table.
     with multiprocessing.get_context('fork').Pool(workers) as pool:
         parts = []
-        for part, steps in zip(pool.imap(_run_chunk, jobs), steps_per_job):
+        for part in pool.imap(_run_chunk, jobs):
             parts.append(part)
             if progress is not None:
                 progress(steps)
