@@ -5,6 +5,7 @@ Human units on every axis and column: degrees, cm, cm/s, N/m, mm.
 from __future__ import annotations
 
 import csv
+import functools
 import math
 from pathlib import Path
 from typing import List
@@ -13,7 +14,7 @@ import numpy as np
 
 from ..core import worm as worm_model
 from . import sweeps
-from .claims import Claim
+from .claims import Claim, _contact_law_zero_stiffness
 from .sweeps import COFS, DEFAULT_KT, FIG10_SLOPES, FIG21_KT, GAPS_MM, Data
 
 DPI = 100
@@ -304,16 +305,10 @@ def report(data: Data, claims: List[Claim], figures_dir: str, elapsed: float,
     return '\n'.join(lines)
 
 
-_CL_CACHE = {}
-
-
+@functools.lru_cache(maxsize=None)
 def _cl(slope, kt):
-    key = (slope, kt)
-    if key not in _CL_CACHE:
-        _CL_CACHE[key] = sweeps.worm_ar(slope, kt, 1.0, model='contact_law').advance_ratio
-    return _CL_CACHE[key]
+    return sweeps.worm_ar(slope, kt, 1.0, model='contact_law').advance_ratio
 
 
 def _contact_law_k0_text():
-    from .claims import _contact_law_zero_stiffness
     return f'{_contact_law_zero_stiffness():.0f}'
