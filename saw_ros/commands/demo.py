@@ -32,8 +32,9 @@ def add_arguments(p):
 def run(args):
     from ..core import Scenario
     scenario = scenario_from_args(args)
+    defaults = Scenario().flat()
     changed = {k: v for k, v in scenario.flat().items()
-               if v != Scenario().flat()[k] and k != 'integration.duration'}
+               if v != defaults[k] and k != 'integration.duration'}
     out = args.out or Path('out') / time.strftime('demo_%Y-%m-%d_%H-%M-%S')
     print(f'saw-ros demo: simulator, camera, vision, comparison, recorder; {args.duration:g} s '
           f'of simulated time at real-time factor {args.real_time_factor:g}; output {out}',
