@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from saw_ros.bag.reader import BagReader, BagReadError
+from saw_ros.conversions import clock_cdr
 from saw_ros.nodes.common import NodeFailure, run_node
 from saw_ros.nodes.recorder import message_class
 
@@ -116,10 +117,8 @@ class Player(Node):
         self.get_logger().info(f'played {self.played} messages in {span:.3f} s')
 
     def _publish_clock(self, stamp_ns: int) -> None:
-        from rosgraph_msgs.msg import Clock
-        msg = Clock()
-        msg.clock.sec, msg.clock.nanosec = divmod(stamp_ns, 1_000_000_000)
-        self.clock_pub.publish(msg)
+        # Pre-encoded, as the simulator publishes it (1 kHz by default).
+        self.clock_pub.publish(clock_cdr(stamp_ns))
 
     @staticmethod
     def _wait_until(deadline: float) -> None:
