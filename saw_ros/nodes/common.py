@@ -7,7 +7,6 @@ shutdown destroy the node and exit 0 without a traceback. A node that must exit 
 from __future__ import annotations
 
 import signal
-import sys
 from typing import Callable, Optional
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
@@ -128,7 +127,3 @@ def run_node(make_node: Callable[[], 'object'], args=None,
             node.destroy_node()
         rclpy.try_shutdown()
     return code
-
-
-def exit_with(code: int) -> None:
-    sys.exit(code)

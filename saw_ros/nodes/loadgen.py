@@ -148,10 +148,9 @@ class LoadGen(Node):
         print(f'max_lag {max_lag:.4f} at {lag_at:.3f}', flush=True)
 
 
-def main(args=None):
-    from saw_ros.nodes.common import exit_with
-    exit_with(run_node(LoadGen, args=args, spin=lambda node: node.run()))
+def main(args=None) -> int:
+    return run_node(LoadGen, args=args, spin=lambda node: node.run())
 
 
 if __name__ == '__main__':
-    main()
+    raise SystemExit(main())

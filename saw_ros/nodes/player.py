@@ -129,10 +129,9 @@ class Player(Node):
             time.sleep(delay)
 
 
-def main(args=None):
-    from saw_ros.nodes.common import exit_with
-    exit_with(run_node(Player, args=args, spin=lambda node: node.play()))
+def main(args=None) -> int:
+    return run_node(Player, args=args, spin=lambda node: node.play())
 
 
 if __name__ == '__main__':
-    main()
+    raise SystemExit(main())

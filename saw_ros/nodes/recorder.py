@@ -308,10 +308,9 @@ class Recorder(Node):
                 for e in meta['topics_with_message_count']}
 
 
-def main(args=None):
-    from saw_ros.nodes.common import exit_with
-    exit_with(run_node(Recorder, args=args))
+def main(args=None) -> int:
+    return run_node(Recorder, args=args)
 
 
 if __name__ == '__main__':
-    main()
+    raise SystemExit(main())
