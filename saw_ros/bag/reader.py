@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import glob
 import os
-import struct
-import zlib
 from dataclasses import dataclass, field
 from typing import Dict, Iterable, Iterator, List, Optional
 
@@ -110,10 +108,8 @@ class BagReader:
                     record = next(records)
                 except StopIteration:
                     break
-                except (McapError, struct.error, EOFError, ValueError, zlib.error,
-                        Exception) as exc:  # a truncated tail: keep what was complete
-                    if isinstance(exc, (KeyboardInterrupt, SystemExit)):
-                        raise
+                except Exception:  # noqa: BLE001  (a truncated tail: McapError, struct.error,
+                    # EOFError, zlib.error... from the incomplete record; keep what was complete)
                     self.complete = False
                     self.unread_bytes += max(0, size - f.tell())
                     break
