@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import json
 import os
-import struct
 import sys
 import tempfile
 import time
@@ -47,10 +46,7 @@ UP = (1.0, 1.25, 1.5, 2.0)
 DOWN = (0.9, 0.75, 0.5, 0.25)
 FPS = 60.0
 MAX_LAG = 1.0           # s of wall time the last tracking status may come after the last step
-STREAMS = ('/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
-           '/saw/joint_states')
 NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder')
-_STAMP = struct.Struct('<iI')
 
 
 # -- CPU of the node processes --------------------------------------------------------------
@@ -111,11 +107,6 @@ class CpuSampler:
 
 
 # -- checking the artefacts -----------------------------------------------------------------
-def _stamp_ns(data: bytes) -> int:
-    sec, nanosec = _STAMP.unpack_from(data, 4)
-    return sec * 1_000_000_000 + nanosec
-
-
 def _missing(stamps: List[int], expected: List[int]) -> int:
     """Messages missing or wrong: expected - matched in order, plus any extras."""
     if stamps == expected:
@@ -127,6 +118,9 @@ def _missing(stamps: List[int], expected: List[int]) -> int:
 def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     """The loss figures of one run (see the module docstring)."""
     from ..bag import BagReader
+    from ..cdr import stamp_ns
+    from ..nodes.simulator import TOPICS
+    streams = tuple(TOPICS)             # /clock and the five /saw streams
     n = int(round(duration / dt))
     frames = int(round(duration * FPS))
     step_ns = int(round(dt * 1e9))
@@ -140,15 +134,15 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     vision_frames = 0
     reader = BagReader(str(run.bag_dir))
     tracking = ('/saw/tracking/status', '/saw/tracking/pose')
-    for m in reader.messages(STREAMS + ('/saw/camera/image_raw', '/saw/camera/camera_info')
+    for m in reader.messages(streams + ('/saw/camera/image_raw', '/saw/camera/camera_info')
                              + tracking):
-        stamps.setdefault(m.topic, []).append(_stamp_ns(m.data))
+        stamps.setdefault(m.topic, []).append(stamp_ns(m.data))
         log_times.setdefault(m.topic, []).append(m.log_time)
     for _m, msg in reader.decoded_messages(['/saw/tracking/status']):
         values = {kv.key: kv.value for kv in msg.status[0].values}
         ok_frames = int(values.get('ok_frames', 0))
         vision_frames = int(values.get('frames', 0))
-    for topic in STREAMS:
+    for topic in streams:
         lost[topic] = _missing(stamps.get(topic, []),
                                [k * step_ns for k in range(1, n + 1)])
     recorded = set(reader.topics())

@@ -67,12 +67,8 @@ def subscriber(steps: int, timeout: float) -> int:
         node.create_subscription(cls, topic, make_callback(topic), qos, raw=True)
     # rclpy's EventsExecutor (C++, Jazzy: experimental) takes messages several times faster than
     # the SingleThreadedExecutor, whose per-message overhead would be what is measured.
-    try:
-        from rclpy.experimental import EventsExecutor
-        executor = EventsExecutor()
-    except ImportError:
-        from rclpy.executors import SingleThreadedExecutor
-        executor = SingleThreadedExecutor()
+    from saw_ros.nodes.common import make_executor
+    executor = make_executor()
     executor.add_node(node)
     end = steps * step_ns
     deadline = time.monotonic() + timeout
