@@ -67,6 +67,12 @@ def message_class(type_name: str):
     return getattr(importlib.import_module(f'{pkg}.{namespace}'), name)
 
 
+def _entry(topic: str, data: bytes, info: dict) -> tuple:
+    """What the writer thread gets for one message taken from a raw subscription."""
+    return (topic, data, info['received_timestamp'] or time.time_ns(), info['source_timestamp'],
+            info.get('publication_sequence_number', 0))
+
+
 def _duration_dict(duration) -> dict:
     ns = getattr(duration, 'nanoseconds', 0)
     if ns <= 0 or ns >= 2 ** 63 - 1:
@@ -217,8 +223,7 @@ class Recorder(Node):
         holder = {}
 
         def on_message(data, info):
-            put((name, data, info['received_timestamp'] or time.time_ns(),
-                 info['source_timestamp'], info.get('publication_sequence_number', 0)))
+            put(_entry(name, data, info))
             self.received += 1
             # Take everything else already waiting: one executor round per burst, not per message.
             sub = holder['sub']
@@ -229,9 +234,7 @@ class Recorder(Node):
                     got = handle.take_message(msg_type, True)
                     if got is None:
                         break
-                    data, info = got
-                    put((name, data, info['received_timestamp'] or time.time_ns(),
-                         info['source_timestamp'], info.get('publication_sequence_number', 0)))
+                    put(_entry(name, *got))
                     taken += 1
             self.received += taken
 
@@ -250,10 +253,7 @@ class Recorder(Node):
                         got = handle.take_message(holder['type'], True)
                         if got is None:
                             break
-                        data, info = got
-                        self._queue.put((name, data, info['received_timestamp'] or time.time_ns(),
-                                         info['source_timestamp'],
-                                         info.get('publication_sequence_number', 0)))
+                        self._queue.put(_entry(name, *got))
                         self.received += 1
             except Exception as exc:  # noqa: BLE001  (context gone: nothing more to take)
                 self.get_logger().debug(f'{name}: drain stopped: {exc}')
