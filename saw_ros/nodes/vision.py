@@ -166,7 +166,7 @@ class VisionNode(Node):
         if self.tracker is None or (self.tracker.camera.width, self.tracker.camera.height) != (
                 w, h) or self.tracker.encoding != encoding:
             self.tracker = Tracker(self._camera(w, h), self.config, encoding)
-        elif self.tracker._last_t is not None and t_ns / NS <= self.tracker._last_t:
+        elif self.tracker.last_time is not None and t_ns / NS <= self.tracker.last_time:
             self.get_logger().warning('image stamps went backwards: tracker restarted')
             self.tracker = Tracker(self.tracker.camera, self.config, encoding)
         res = self.tracker.update(image, t_ns / NS)

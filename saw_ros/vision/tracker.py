@@ -227,6 +227,12 @@ class Tracker:
         self._last_t: Optional[float] = None
 
     @property
+    def last_time(self) -> Optional[float]:
+        """Time of the last frame given to ``update`` (None before the first): the next must be
+        later."""
+        return self._last_t
+
+    @property
     def initialised(self) -> bool:
         return self._tracks['front'].p is not None and self._tracks['back'].p is not None
 
