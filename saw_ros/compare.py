@@ -176,9 +176,11 @@ def load_reference(path: Path) -> List[ReferencePoint]:
     for i, row in enumerate(reader, start=2):
         try:
             speed = number(row.get('speed_cm_s'))
+            ar = number(row.get('advance_ratio'))
+            if speed is None and ar is None:
+                raise ValueError('it has neither speed_cm_s nor advance_ratio')
             points.append(ReferencePoint(float(row['slope_deg']), float(row['voltage_V']),
-                                         None if speed is None else speed / 100.0,
-                                         number(row.get('advance_ratio')),
+                                         None if speed is None else speed / 100.0, ar,
                                          (row.get('source') or '').strip()))
         except (TypeError, ValueError) as exc:
             raise ValueError(f'{path}: row {i} is not valid: {exc}') from None

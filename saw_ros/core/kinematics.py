@@ -151,9 +151,12 @@ class TipTable:
         self.samples = samples
         phases = np.linspace(0.0, 2.0 * np.pi, samples + 1)
         geo = link_geometry(robot, phases)
-        self.points = np.concatenate([geo.down_tips, geo.up_tips], axis=-1)  # (samples + 1, P)
-        self.slopes = np.diff(self.points, axis=0)                           # (samples, P)
-        self.points = np.ascontiguousarray(self.points[:-1])
+        points = np.concatenate([geo.down_tips, geo.up_tips], axis=-1)     # (samples + 1, P)
+        slopes = np.diff(points, axis=0)                                    # (samples, P)
+        # One row past the end (= phase 2 pi = phase 0): a phase that rounds to 2 pi * (1 - eps)
+        # can give index `samples` without a clamp in the 1 kHz loop.
+        self.points = points
+        self.slopes = np.concatenate([slopes, slopes[:1]])
         self.scale = samples / (2.0 * np.pi)
         n = robot.wave_links
         # +1 for tips pressing into the top surface, -1 for the bottom one.
@@ -167,6 +170,5 @@ class TipTable:
         """Tips at phase(s) in [0, 2 pi): shape phase.shape + (P,)."""
         u = np.asarray(phase) * self.scale
         i = u.astype(np.intp)
-        np.minimum(i, self.samples - 1, out=i)
         w = (u - i)[..., None]
         return self.points[i] + w * self.slopes[i]

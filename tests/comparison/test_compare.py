@@ -81,3 +81,7 @@ def test_bad_reference_files_are_refused_with_the_reason(tmp_path):
         load_reference(bad)
     with pytest.raises(FileNotFoundError):
         load_reference(tmp_path / 'missing.csv')
+    empty = tmp_path / 'empty_row.csv'
+    empty.write_text('slope_deg,voltage_V,speed_cm_s,advance_ratio\n20,6,,\n')
+    with pytest.raises(ValueError, match='row 2 .*neither speed_cm_s nor advance_ratio'):
+        load_reference(empty)

@@ -68,3 +68,11 @@ def test_tip_table_interpolates_the_exact_kinematics():
     geo = link_geometry(ROBOT, phases)
     exact = np.concatenate([geo.down_tips, geo.up_tips], axis=-1)
     assert np.max(np.abs(table.at(phases) - exact)) < 2e-7    # m
+
+
+def test_tip_table_holds_phases_that_round_up_to_a_full_turn():
+    table = TipTable(ROBOT)
+    last = np.nextafter(2 * np.pi, 0.0)
+    np.testing.assert_allclose(table.at(last), table.at(0.0), atol=1e-9)
+    np.testing.assert_allclose(table.at(np.array([last, 1.0])), table.at(np.array([0.0, 1.0])),
+                               atol=1e-9)
