@@ -56,7 +56,8 @@ def test_counts_equal_published_and_signals_finish_the_bag(tmp_path, stop):
 
 def test_images_and_streams_recorded(tmp_path):
     out = tmp_path / 'bag'
-    rec = start_recorder(tmp_path, out)
+    # The raw frames are excluded by default (record_topics.yaml): ask for them.
+    rec = start_recorder(tmp_path, out, exclude_topics=[''])
     published = run_loadgen(tmp_path, rate=1000.0, duration=2.0, streams=6, image_fps=60.0,
                             start_delay=1.5)
     assert rec.stop(20) == 0, rec.output()

@@ -6,21 +6,30 @@ Subscribes to the simulator's ground truth (/saw/pose, raw) and to the tracker's
 error as diagnostic_msgs/DiagnosticArray on /saw/comparison about once a second, and a final
 summary when the ground truth stops (the run ended) or the node shuts down.
 
+Parameters read once at start (simulator_node, reference_file, steady_threshold, report_period)
+are read-only: ``ros2 param set`` refuses them with the reason. An invalid one ends the node at
+start with the reason and exit code 1, in particular a ``reference_file`` that does not exist or
+does not parse: the user asked for a comparison with measurements, so running on without them
+would only hide a typo (leave the parameter out, or empty, to run without reference).
+
 The run's conditions (robot geometry for v_theory, frequency or voltage, slope) are read from the
 simulator node's own parameters and followed on /parameter_events, so that the comparison always
 uses what the simulator runs. The math lives in saw_ros.compare.
 """
 from __future__ import annotations
 
+import csv
 import json
 import math
 from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import ParameterDescriptor, ParameterEvent, ParameterType
+from rcl_interfaces.msg import (ParameterDescriptor, ParameterEvent, ParameterType,
+                                SetParametersResult)
 from rcl_interfaces.srv import GetParameters
 from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -28,7 +37,8 @@ from .. import cdr
 from .. import conversions as conv
 from ..compare import RunComparator, find_reference, load_reference, reference_error
 from ..core.params import Scenario
-from .common import (INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, run_node, spin_events,
+from ..ros_params import accept_integers_for_doubles
+from .common import (INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, NodeFailure, run_node, spin_events,
                      with_depth)
 from .simulator import EXCLUDED as SIMULATOR_EXCLUDED
 
@@ -43,32 +53,68 @@ def _value(p):
             ParameterType.PARAMETER_STRING: p.string_value}.get(p.type)
 
 
+# (name, default, description, read-only): read-only ones are read once, at start.
+PARAMETERS = (
+    ('simulator_node', 'simulator', 'name of the simulator node whose parameters define the run',
+     True),
+    ('reference_file', '', 'CSV of measured results (slope_deg, voltage_V, speed_cm_s and/or '
+                           'advance_ratio); empty = none. See msg_config/reference_paper.csv',
+     True),
+    ('steady_threshold', 0.02, 'CCI below which the ground truth counts as steady (fraction, '
+                               '> 0)', True),
+    ('report_period', 1.0, 'wall-clock seconds between reports on /saw/comparison (> 0)', True),
+    ('idle_timeout', 2.0, 'wall-clock seconds without ground truth after which the run has '
+                          'ended and the final summary is published (> 0)', False),
+    ('report_path', '', 'write the final summary as JSON here; empty = do not', False),
+    ('exit_when_done', False, 'exit (code 0) after publishing the final summary', False),
+)
+POSITIVE = ('steady_threshold', 'report_period', 'idle_timeout')
+
+
+def _check_positive(name, value) -> None:
+    if name in POSITIVE and not (math.isfinite(value) and value > 0):
+        raise ValueError(f'{name} = {value} must be a finite number > 0')
+
+
+def read_reference(path: str):
+    """The reference points of ``path`` ('' = none); NodeFailure with a one-line reason if the
+    file is missing or does not parse."""
+    if not path:
+        return []
+    try:
+        return load_reference(Path(path))
+    except FileNotFoundError:
+        reason = f'reference_file {path} does not exist'
+    except OSError as exc:                              # a directory, no permission...
+        reason = f'reference_file {path} cannot be read: {exc.strerror or exc}'
+    except (ValueError, csv.Error) as exc:              # UnicodeDecodeError is a ValueError
+        text = str(exc)        # load_reference's own messages start with the path
+        reason = (f'reference_file {text}' if text.startswith(str(path)) else
+                  f'reference_file {path} is not a reference CSV: {text}')
+    raise NodeFailure(f'invalid parameters: {reason} (leave reference_file out to compare '
+                      f'without measurements)')
+
+
 class ComparisonNode(Node):
     def __init__(self, **kwargs):
         super().__init__('comparison', **kwargs)
-        declare = self.declare_parameter
-        declare('simulator_node', 'simulator', ParameterDescriptor(
-            description='name of the simulator node whose parameters define the run'))
-        declare('reference_file', '', ParameterDescriptor(
-            description='CSV of measured results (slope_deg, voltage_V, speed_cm_s and/or '
-                        'advance_ratio); empty = none. See msg_config/reference_paper.csv'))
-        declare('steady_threshold', 0.02, ParameterDescriptor(
-            description='CCI below which the ground truth counts as steady (fraction)'))
-        declare('report_period', 1.0, ParameterDescriptor(
-            description='wall-clock seconds between reports on /saw/comparison'))
-        declare('idle_timeout', 2.0, ParameterDescriptor(
-            description='wall-clock seconds without ground truth after which the run has ended '
-                        'and the final summary is published'))
-        declare('report_path', '', ParameterDescriptor(
-            description='write the final summary as JSON here; empty = do not'))
-        declare('exit_when_done', False, ParameterDescriptor(
-            description='exit (code 0) after publishing the final summary'))
+        doubles = {n: d for n, d, _, _ in PARAMETERS if isinstance(d, float)}
+        accept_integers_for_doubles(self, doubles, doubles)
+        try:
+            for name, default, text, read_only in PARAMETERS:
+                self.declare_parameter(name, default, ParameterDescriptor(
+                    description=text + (' (start-up only)' if read_only else ''),
+                    read_only=read_only))
+            for name in POSITIVE:
+                _check_positive(name, self.get_parameter(name).value)
+        except (ParameterException, ValueError) as exc:
+            raise NodeFailure(f'invalid parameters: {exc}') from None
+        self.add_on_set_parameters_callback(self._validate)
+        self.reference = read_reference(self.get_parameter('reference_file').value)
         self.scenario_values = {}
         self.scenario = Scenario()
         self.comparator = RunComparator(self.scenario.robot, float('nan'),
                                         self.get_parameter('steady_threshold').value)
-        ref = self.get_parameter('reference_file').value
-        self.reference = load_reference(Path(ref)) if ref else []
         self.simulator = self.get_parameter('simulator_node').value.strip('/')
         self.final_sent = False
         self.done = False
@@ -88,6 +134,16 @@ class ComparisonNode(Node):
         self._pending = None
         self.create_timer(self.get_parameter('report_period').value, self._tick,
                           clock=self._wall)
+
+    def _validate(self, parameters) -> SetParametersResult:
+        """Run-time changes of the live parameters (the others are read-only)."""
+        for p in parameters:
+            try:
+                _check_positive(p.name, p.value)
+            except (TypeError, ValueError) as exc:
+                self.get_logger().warning(f'parameter change refused: {exc}')
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
 
     # -- the run's conditions, from the simulator ---------------------------------------------
     def _request_parameters(self):

@@ -6,17 +6,28 @@ Parameters
   topics               string[]  only these topics (default: all)
   clock                bool      publish /clock (default true): the recorded /clock messages when
                                  the bag has them, else from the log times at ``clock_rate``
-  clock_rate           double    Hz of /clock made from log times (default 1000)
+  clock_rate           double    Hz of /clock made from log times (default 1000; 0 < rate <= 1e6)
   queue_depth          int       publisher history depth (default 1000)
   wait_for_subscribers int       wait (up to 10 s) for this many subscriptions before playing
 
+Every parameter is read once, at start: all are read-only (``ros2 param set`` is refused with
+"Trying to set a read-only parameter"); invalid values end the node at start with the reason
+and exit code 1. The parameter services are served while playing (a thread spins the node).
+
 Each topic is offered with the QoS the bag's publishers offered (reliability, durability), the
-bytes are published as recorded. The node exits 0 once everything is played and acknowledged.
+bytes are published as recorded. The node exits 0 once everything is played; it then waits at
+most ``ACK_TIMEOUT`` s in all for reliable subscribers to acknowledge the last messages, and
+says which topics were not acknowledged.
 """
 from __future__ import annotations
 
+import math
+import threading
 import time
 
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -26,6 +37,18 @@ from saw_ros.nodes.common import NodeFailure, run_node
 from saw_ros.nodes.recorder import message_class
 
 SLEEP_MIN = 0.0005   # s: no sleep for a message due sooner than this (timing error < 0.5 ms)
+ACK_TIMEOUT = 5.0    # s, in all, for subscribers to acknowledge the last messages at the end
+MAX_CLOCK_RATE = 1e6  # Hz: one /clock a microsecond at most
+PARAMETERS = (
+    ('bag', '', 'bag directory (or .mcap file) to play; required'),
+    ('rate', 1.0, 'speed factor: 1 = the recorded timing, 2 = twice as fast (> 0)'),
+    ('topics', [''], 'only these topics (empty: all)'),
+    ('clock', True, 'publish /clock: the recorded one, or made from log times at clock_rate'),
+    ('clock_rate', 1000.0, f'Hz of /clock made from log times (0 < clock_rate <= '
+                           f'{MAX_CLOCK_RATE:g})'),
+    ('queue_depth', 1000, 'publisher history depth (>= 1)'),
+    ('wait_for_subscribers', 0, 'wait (up to 10 s) for this many subscriptions before playing'),
+)
 
 
 def offered_qos(profiles, depth: int) -> QoSProfile:
@@ -45,14 +68,30 @@ def offered_qos(profiles, depth: int) -> QoSProfile:
 class Player(Node):
     def __init__(self):
         super().__init__('player')
-        p = {name: self.declare_parameter(name, default).value for name, default in (
-            ('bag', ''), ('rate', 1.0), ('topics', ['']), ('clock', True),
-            ('clock_rate', 1000.0), ('queue_depth', 1000), ('wait_for_subscribers', 0))}
+        from saw_ros.ros_params import accept_integers_for_doubles
+        doubles = {name: default for name, default, _ in PARAMETERS
+                   if isinstance(default, float)}
+        accept_integers_for_doubles(self, doubles, doubles)
+        try:
+            # Read once, here: read-only, so that `ros2 param set` says so instead of
+            # reporting a change that would not happen.
+            p = {name: self.declare_parameter(name, default, ParameterDescriptor(
+                description=f'{text} (start-up only)', read_only=True)).value
+                for name, default, text in PARAMETERS}
+        except ParameterException as exc:
+            raise NodeFailure(f'invalid parameters: {exc}') from None
         self.p = p
         if not p['bag']:
             raise NodeFailure('parameter bag is required (-p bag:=<bag directory>)')
-        if p['rate'] <= 0:
-            raise NodeFailure(f'rate must be > 0, not {p["rate"]}')
+        if not (math.isfinite(p['rate']) and p['rate'] > 0):
+            raise NodeFailure(f'invalid parameters: rate = {p["rate"]} must be a finite '
+                              f'number > 0 (1 = recorded timing)')
+        if not (math.isfinite(p['clock_rate']) and 0 < p['clock_rate'] <= MAX_CLOCK_RATE):
+            raise NodeFailure(f'invalid parameters: clock_rate = {p["clock_rate"]} Hz must be '
+                              f'> 0 and <= {MAX_CLOCK_RATE:g}')
+        if p['queue_depth'] < 1 or p['wait_for_subscribers'] < 0:
+            raise NodeFailure(f'invalid parameters: queue_depth = {p["queue_depth"]} must be '
+                              f'>= 1, wait_for_subscribers = {p["wait_for_subscribers"]} >= 0')
         try:
             self.reader = BagReader(p['bag'])
             topics = self.reader.topics()
@@ -78,6 +117,9 @@ class Player(Node):
             from saw_ros.nodes.common import CLOCK_QOS
             self.clock_pub = self.create_publisher(Clock, '/clock', CLOCK_QOS)
         self.played = 0
+        self._executor = None       # serves the parameter services while playing
+        self._spinner = None
+        self._stopping = False
 
     def _subscriber_count(self) -> int:
         pubs = list(self.publishers_by_topic.values())
@@ -111,10 +153,27 @@ class Player(Node):
             self.publishers_by_topic[m.topic].publish(m.data)
             self.played += 1
         span = time.monotonic() - start_wall if start_wall is not None else 0.0
-        for pub in list(self.publishers_by_topic.values()) + (
-                [self.clock_pub] if self.clock_pub is not None else []):
-            pub.wait_for_all_acked()
         self.get_logger().info(f'played {self.played} messages in {span:.3f} s')
+        self._wait_acked(ACK_TIMEOUT)
+
+    def _wait_acked(self, timeout: float) -> None:
+        """Give reliable subscribers ``timeout`` s in all to acknowledge the last messages
+        (a subscriber that stalled or vanished without unmatching would otherwise keep the
+        player from ever exiting); name the topics that were not acknowledged."""
+        deadline = time.monotonic() + timeout
+        pubs = dict(self.publishers_by_topic)
+        if self.clock_pub is not None:
+            pubs['/clock'] = self.clock_pub
+        late = []
+        for name, pub in pubs.items():
+            left = max(0.0, deadline - time.monotonic())
+            if not pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
+                late.append(name)
+        if late:
+            self.get_logger().warn(
+                f'not acknowledged by every subscriber within {timeout:g} s: '
+                f'{", ".join(late)} (a subscriber stalled or is gone; it may have missed the '
+                f'last messages)')
 
     def _publish_clock(self, stamp_ns: int) -> None:
         # Pre-encoded, as the simulator publishes it (1 kHz by default).
@@ -129,8 +188,40 @@ class Player(Node):
             time.sleep(delay)
 
 
+    def start_services(self) -> None:
+        """Serve the parameter services (and the rest of the node's callbacks) from a thread
+        while play() publishes: a `ros2 param set` then gets its answer (refused: read-only)."""
+        from rclpy.executors import SingleThreadedExecutor
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self)
+        self._spinner = threading.Thread(target=self._spin, name='player-services', daemon=True)
+        self._spinner.start()
+
+    def _spin(self) -> None:
+        executor = self._executor
+        try:
+            while self.context.ok() and not self._stopping:
+                executor.spin_once(timeout_sec=0.1)
+        except Exception:  # noqa: BLE001  (context shut down while spinning)
+            pass
+
+    def close(self) -> None:
+        """Stop the service thread before the node is destroyed."""
+        self._stopping = True
+        if self._executor is not None:
+            self._spinner.join(2.0)
+            self._executor.remove_node(self)
+            self._executor.shutdown(timeout_sec=0)
+            self._executor = None
+
+
+def _play(node: Player) -> None:
+    node.start_services()
+    node.play()
+
+
 def main(args=None) -> int:
-    return run_node(Player, args=args, spin=lambda node: node.play())
+    return run_node(Player, args=args, spin=_play)
 
 
 if __name__ == '__main__':

@@ -2,7 +2,11 @@
 
 Parameters
   topics      string[]  topics to record; empty: ``msg_config/record_topics.yaml`` (every topic of
-                        saw_ros and /clock, plus any topic under its ``prefixes``)
+                        saw_ros and /clock, plus any topic under its ``prefixes``, less its
+                        ``exclude``: the raw camera frames)
+  exclude_topics string[] topics under a prefix not to record (default: the file's ``exclude``,
+                        the raw camera frames; ``-p exclude_topics:="['']"`` records them too);
+                        a topic named in ``topics`` or the file's ``topics`` is always recorded
   output      string    bag directory; empty: ``<bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>``
   bags_dir    string    where new bags go (default ``bags``)
   label       string    what is recorded, for the directory name (default ``default``)
@@ -15,11 +19,21 @@ takes every message waiting on its subscription (the executor's per-message cost
 otherwise) and queues it; a writer thread does the MCAP work and compression, so disk and zstd
 never hold up the executor. Topics that appear later are subscribed when discovery sees them.
 Ctrl-C / SIGTERM drain the subscriptions, then finish the MCAP file and write metadata.yaml.
+Every parameter is read once, at start: all are read-only (``ros2 param set`` is refused).
+
+Loss. A subscription that cannot keep up loses the oldest messages of its queue (KEEP_LAST), and
+a publisher's history can overwrite messages not yet delivered. Either way the publication
+sequence numbers of what arrives have gaps: the final line gives the messages lost per topic,
+``lost N (topic: n, ...)``, and metadata.yaml keeps them in ``custom_data``
+(``saw_ros.lost_messages``, JSON). Jazzy's rclpy gives no publisher GID in the message info, so
+messages of several publishers on one topic are told apart by their sequence numbers
+(``LossCounter``); loss before the first message of a publisher is not seen.
 """
 from __future__ import annotations
 
 import datetime
 import importlib
+import json
 import os
 import queue
 import sys
@@ -28,6 +42,8 @@ import time
 from typing import Dict, List
 
 import yaml
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -35,6 +51,19 @@ from saw_ros.bag.writer import BagWriteError, BagWriter, INFINITE, qos_profile_d
 from saw_ros.nodes.common import NodeFailure, run_node
 
 _STOP = object()
+# (name, default, description); every one read once at start, so read-only.
+PARAMETERS = (
+    ('topics', [''], 'topics to record; empty: msg_config/record_topics.yaml'),
+    ('exclude_topics', None, "topics under a prefix not to record (default: record_topics.yaml's "
+                             "exclude, the raw camera frames; [''] = none)"),
+    ('output', '', 'bag directory; empty: <bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>'),
+    ('bags_dir', 'bags', 'where new bags go'),
+    ('label', 'default', 'what is recorded, for the directory name'),
+    ('queue_depth', 1000, 'subscription history depth (>= 1)'),
+    ('compression', 'zstd', 'zstd or none'),
+    ('chunk_size', 768 * 1024, 'bytes per MCAP chunk (>= 1)'),
+    ('discovery_period', 0.25, 'seconds between looks for new topics (> 0)'),
+)
 # Types received on a second DDS participant (see Recorder.__init__).
 LARGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
 
@@ -57,6 +86,17 @@ def default_topics():
     return ['/clock'], ['/saw/']
 
 
+def default_excluded() -> List[str]:
+    """The ``exclude`` list of msg_config/record_topics.yaml (topics under a prefix that the
+    recorder leaves out by default)."""
+    from saw_ros.config import config_path
+    try:
+        with open(config_path('record_topics.yaml'), encoding='utf-8') as f:
+            return [t for t in (yaml.safe_load(f) or {}).get('exclude') or [] if t]
+    except OSError:
+        return []
+
+
 def default_output(bags_dir: str, label: str) -> str:
     stamp = datetime.datetime.now().strftime('%Y-%m-%d_%H-%M-%S')
     return os.path.join(bags_dir, f'{stamp}_{label}')
@@ -65,6 +105,51 @@ def default_output(bags_dir: str, label: str) -> str:
 def message_class(type_name: str):
     pkg, namespace, name = type_name.split('/')
     return getattr(importlib.import_module(f'{pkg}.{namespace}'), name)
+
+
+class LossCounter:
+    """Messages lost per topic, from gaps in the publication sequence numbers of what arrives.
+
+    A publisher numbers its messages 1, 2, 3... (the DDS writer's sequence number, in rclpy's
+    message info as ``publication_sequence_number``). Without the publisher's GID (not in
+    Jazzy's rclpy message info), a message continues the publisher whose last number is the
+    closest below its own; a number at or below every last one starts a new publisher (numbers
+    start again at 1). Sequence number 0 means the middleware does not give one: not counted.
+    """
+
+    def __init__(self):
+        self.lost: Dict[str, int] = {}
+        self._last: Dict[str, List[int]] = {}     # topic: last number of each publisher seen
+
+    def add(self, topic: str, sequence: int) -> None:
+        if not sequence:
+            return
+        lasts = self._last.get(topic)
+        if lasts is None:
+            self._last[topic] = [sequence]
+            self.lost.setdefault(topic, 0)
+            return
+        if len(lasts) == 1 and lasts[0] < sequence:            # the usual case: one publisher
+            self.lost[topic] += sequence - lasts[0] - 1
+            lasts[0] = sequence
+            return
+        best = None
+        for i, last in enumerate(lasts):
+            if last < sequence and (best is None or last > lasts[best]):
+                best = i
+        if best is None:
+            lasts.append(sequence)
+        else:
+            self.lost[topic] += sequence - lasts[best] - 1
+            lasts[best] = sequence
+
+    def total(self) -> int:
+        return sum(self.lost.values())
+
+    def text(self) -> str:
+        """``lost 0`` or ``lost 12 (/saw/camera/image_raw: 12)``: the topics that lost any."""
+        losing = ', '.join(f'{t}: {n}' for t, n in sorted(self.lost.items()) if n)
+        return f'lost {self.total()}' + (f' ({losing})' if losing else '')
 
 
 def _entry(topic: str, data: bytes, info: dict) -> tuple:
@@ -112,20 +197,29 @@ def request_qos(offers: List, depth: int) -> QoSProfile:
 class Recorder(Node):
     def __init__(self):
         super().__init__('recorder')
-        self.declare_parameter('topics', [''])
-        self.declare_parameter('output', '')
-        self.declare_parameter('bags_dir', 'bags')
-        self.declare_parameter('label', 'default')
-        self.declare_parameter('queue_depth', 1000)
-        self.declare_parameter('compression', 'zstd')
-        self.declare_parameter('chunk_size', 768 * 1024)
-        self.declare_parameter('discovery_period', 0.25)  # seconds
+        from saw_ros.ros_params import accept_integers_for_doubles
+        accept_integers_for_doubles(self, ['discovery_period'], {'discovery_period': 0.25})
+        try:
+            # All read once, here: read-only, so that `ros2 param set` is refused with the
+            # reason instead of reporting a change that would not happen.
+            for name, default, text in PARAMETERS:
+                self.declare_parameter(name, default if default is not None else (
+                    default_excluded() or ['']), ParameterDescriptor(
+                        description=f'{text} (start-up only)', read_only=True))
+        except ParameterException as exc:
+            raise NodeFailure(f'invalid parameters: {exc}') from None
+        bad = [f'{n} = {self.get_parameter(n).value} must be > 0'
+               for n in ('queue_depth', 'chunk_size', 'discovery_period')
+               if not self.get_parameter(n).value > 0]
+        if bad:
+            raise NodeFailure(f'invalid parameters: {", ".join(bad)}')
 
         topics = [t for t in self.get_parameter('topics').value if t]
         if topics:
             self._topics, self._prefixes = topics, []
         else:
             self._topics, self._prefixes = default_topics()
+        self._excluded = {t for t in self.get_parameter('exclude_topics').value if t}
         output = self.get_parameter('output').value or default_output(
             self.get_parameter('bags_dir').value, self.get_parameter('label').value)
         try:
@@ -138,6 +232,7 @@ class Recorder(Node):
         self._subs: Dict[str, object] = {}
         self._unmatched: Dict[str, tuple] = {}   # topic: (type, subscribed at), not matched yet
         self.received = 0
+        self.losses = LossCounter()     # fed by the writer thread
         self._write_error = None
         self._closed = False
         self._writer = threading.Thread(target=self._write_loop, name='bag-writer', daemon=True)
@@ -148,8 +243,11 @@ class Recorder(Node):
         # 1-5 % of each 1 kHz stream while 60 fps 1280x720 images were recorded).
         self._large = None
         self._large_thread = None
-        self.get_logger().info(f'recording to {self.bag.directory} '
-                               f'({", ".join(self._topics + [p + "*" for p in self._prefixes])})')
+        self.get_logger().info(
+            f'recording to {self.bag.directory} '
+            f'({", ".join(self._topics + [p + "*" for p in self._prefixes])}'
+            + (f'; not {", ".join(sorted(self._excluded))}' if self._excluded and self._prefixes
+               else '') + ')')
         self._discover()
         self._timer = self.create_timer(float(self.get_parameter('discovery_period').value),
                                         self._discover)
@@ -158,7 +256,8 @@ class Recorder(Node):
 
     # ---- discovery
     def _wanted(self, name: str) -> bool:
-        return name in self._topics or any(name.startswith(p) for p in self._prefixes)
+        return name in self._topics or (name not in self._excluded and any(
+            name.startswith(p) for p in self._prefixes))
 
     def _discover(self) -> None:
         if self._write_error is not None:
@@ -262,10 +361,13 @@ class Recorder(Node):
     def _write_loop(self) -> None:
         bag = self.bag
         get = self._queue.get
+        count = self.losses.add
         while True:
             item = get()
             if item is _STOP:
                 return
+            if item[0] != 'topic':
+                count(item[0], item[4])
             if self._write_error is not None:
                 continue
             try:
@@ -287,13 +389,27 @@ class Recorder(Node):
         self._drain()
         self._queue.put(_STOP)
         self._writer.join()
+        lost = {t: self.losses.lost.get(t, 0) for t in self._counts()}
+        self.bag.custom_data = dict(self.bag.custom_data or {}, **{
+            'saw_ros.lost_messages': json.dumps(lost, sort_keys=True)})
         self.bag.close()
         counts = ', '.join(f'{t}: {n}' for t, n in self._counts().items())
-        done = f'bag {self.bag.directory} finished: {self.bag.message_count} messages ({counts})'
+        done = (f'bag {self.bag.directory} finished: {self.bag.message_count} messages '
+                f'({counts}); {self.losses.text()}')
+        warning = None
+        if self.losses.total():
+            warning = (f'{self.losses.text()}: messages lost before they were recorded (gaps '
+                       f'in the publishers\' sequence numbers); the recorder or the machine '
+                       f'did not keep up: record fewer topics (the raw camera frames above all) '
+                       f'or raise queue_depth')
         if self.context.ok():
             self.get_logger().info(done)
+            if warning:
+                self.get_logger().warning(warning)
         else:  # after Ctrl-C the context is gone and /rosout with it
             print(f'[recorder] {done}', file=sys.stderr, flush=True)
+            if warning:
+                print(f'[recorder] WARNING: {warning}', file=sys.stderr, flush=True)
         if self._write_error is not None:
             self.get_logger().error(f'writing failed: {self._write_error}')
         if self._large is not None:

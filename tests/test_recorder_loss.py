@@ -1,0 +1,81 @@
+"""The recorder says what it lost: per topic, from gaps in the publication sequence numbers, in
+its final line and in metadata.yaml's custom_data."""
+import json
+import os
+import re
+import signal
+
+import pytest
+import yaml
+
+from saw_ros.bag import BagReader
+from saw_ros.nodes.recorder import LossCounter
+from saw_ros.process import ManagedProcess, node_command, wait_for
+
+
+def test_loss_counter_counts_gaps_per_publisher():
+    c = LossCounter()
+    for s in (1, 2, 3, 6, 7, 10):            # 4, 5, 8, 9 lost
+        c.add('/a', s)
+    for s in (5, 6, 9):                      # first seen at 5: nothing before counts; 7, 8 lost
+        c.add('/b', s)
+    c.add('/b', 0)                           # no sequence number: not counted
+    assert c.lost == {'/a': 4, '/b': 2}
+    assert c.text() == 'lost 6 (/a: 4, /b: 2)'
+    # Two publishers on one topic, numbered independently and interleaved.
+    c = LossCounter()
+    for s in (100, 1, 101, 2, 103, 3, 104, 5):   # 102 and 4 lost
+        c.add('/c', s)
+    assert c.lost == {'/c': 2}
+    assert LossCounter().text() == 'lost 0'
+
+
+def _record(tmp_path, rec_params, gen_params):
+    out = tmp_path / 'bag'
+    rec = ManagedProcess('recorder', node_command('recorder', params=dict(
+        output=str(out), **rec_params)), os.environ, tmp_path / 'logs')
+    assert wait_for(lambda: 'recording to' in rec.output(), 30), rec.output()
+    gen = ManagedProcess('loadgen', node_command('loadgen', params=gen_params), os.environ,
+                         tmp_path / 'logs')
+    assert gen.wait(90) == 0, gen.output()
+    rec.signal(signal.SIGINT)
+    assert rec.wait(30) == 0, rec.output()
+    final = [line for line in rec.output().splitlines() if 'finished:' in line]
+    assert len(final) == 1, rec.output()
+    meta = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    lost = json.loads(meta['custom_data']['saw_ros.lost_messages'])
+    published = {line.split()[1]: int(line.split()[2]) for line in gen.output().splitlines()
+                 if line.startswith('published ')}
+    return final[0], lost, published, BagReader(str(out))
+
+
+@pytest.mark.ros
+def test_recorder_reports_zero_loss(tmp_path):
+    final, lost, published, reader = _record(
+        tmp_path, {}, dict(rate=200.0, duration=1.0, streams=2))
+    counts = {n: t.count for n, t in reader.topics().items()}
+    assert counts == published
+    assert final.endswith('; lost 0'), final
+    assert lost == {t: 0 for t in published}
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_recorder_that_cannot_keep_up_reports_its_loss_per_topic(tmp_path):
+    # A one-message subscription queue against 6 x 3 kHz: messages are overwritten before the
+    # recorder takes them.
+    final, lost, published, reader = _record(
+        tmp_path, {'queue_depth': 1}, dict(rate=3000.0, duration=1.0, streams=6))
+    assert sum(lost.values()) > 0, final
+    seqs = {}
+    for m in reader.messages():
+        seqs.setdefault(m.topic, []).append(m.sequence)
+    for topic, s in seqs.items():
+        # what arrived + what was lost = every number from the first received to the last
+        assert len(s) + lost[topic] == s[-1] - s[0] + 1, (topic, len(s), lost[topic])
+        assert s[-1] <= published[topic]
+    match = re.search(r'; lost (\d+) \((.*)\)$', final)
+    assert match, final
+    assert int(match.group(1)) == sum(lost.values())
+    reported = dict(part.rsplit(': ', 1) for part in match.group(2).split(', '))
+    assert {t: int(n) for t, n in reported.items()} == {t: n for t, n in lost.items() if n}
