@@ -26,6 +26,9 @@ starts at 1.0 and climbs until a rung fails; when 1.0 fails it steps down instea
 ``pipeline_lost_messages`` the messages missing at that factor (0 by definition, or at the lowest
 rung tried when none is sustained), ``pipeline_cpu_share`` each node's CPU (fraction of one core)
 while the simulator stepped at real-time factor 1.0. Two shared cores: figures are noisy.
+Each rung's folder (node logs, comparison.json; the bag and video only when the rung failed) is
+kept in ``log_dir('pipeline')/rtf_<factor>/``; a graph that does not finish in time, or
+artefacts that cannot be read, make a failed rung, never a crashed bench.
 
     python -m saw_ros.benchmarks.pipeline --rtf 1.0 [--duration 6] [--keep DIR]   # one rung
 """
@@ -33,8 +36,8 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Dict, List, Optional
@@ -213,8 +216,13 @@ def measure(rtf: float, duration: float, work: Path, record_topics: Optional[Lis
                            reference_file=config_path('reference_paper.csv'))
     except PipelineError as exc:
         return {'rtf': rtf, 'lost': None, 'sustained': False, 'problems': [str(exc)[:300]],
-                'wall_s': round(time.monotonic() - start, 1)}
-    result = check(run, duration, rtf)
+                'wall_s': round(time.monotonic() - start, 1), 'logs': str(out / 'logs')}
+    try:
+        result = check(run, duration, rtf)
+    except Exception as exc:  # noqa: BLE001  (a bag or log the run left unreadable)
+        return {'rtf': rtf, 'lost': None, 'sustained': False, 'logs': str(out / 'logs'),
+                'problems': [f'checking the run failed: {type(exc).__name__}: {exc}'[:300]],
+                'wall_s': round(run.wall_s, 1)}
     window = result.pop('window')
     if window is not None:
         result['cpu_share'] = sampler.share(*window)
@@ -224,31 +232,37 @@ def measure(rtf: float, duration: float, work: Path, record_topics: Optional[Lis
 
 
 def run(quick: bool = False) -> dict:
+    from . import log_dir
     duration = QUICK_DURATION if quick else DURATION
     best, lost_best, cpu_at_1, lowest = 0.0, None, None, None
-    with tempfile.TemporaryDirectory(prefix='saw_bench_pipeline_') as tmp:
-        def rung(rtf):
-            result = measure(rtf, duration, Path(tmp))
-            print(f'bench pipeline: {json.dumps(result)}', file=sys.stderr, flush=True)
-            return result
-        first = rung(1.0)
-        cpu_at_1 = first.get('cpu_share')
-        if first['sustained']:
-            best, lost_best = 1.0, 0
-            for rtf in UP[1:]:
-                if not rung(rtf)['sustained']:
-                    break
-                best = rtf
-        else:
-            lowest = first
-            for rtf in DOWN:
-                result = rung(rtf)
-                lowest = result
-                if result['sustained']:
-                    best, lost_best = rtf, 0
-                    break
-            if best == 0.0:
-                lost_best = lowest.get('lost')
+    work = log_dir('pipeline')
+
+    def rung(rtf):
+        shutil.rmtree(work / f'rtf_{rtf:g}', ignore_errors=True)   # a reused --logs folder
+        result = measure(rtf, duration, work)
+        if result['sustained']:     # keep the logs; the bag and video only of failures
+            shutil.rmtree(work / f'rtf_{rtf:g}' / 'bag', ignore_errors=True)
+            (work / f'rtf_{rtf:g}' / 'camera.mp4').unlink(missing_ok=True)
+        print(f'bench pipeline: {json.dumps(result)}', file=sys.stderr, flush=True)
+        return result
+    first = rung(1.0)
+    cpu_at_1 = first.get('cpu_share')
+    if first['sustained']:
+        best, lost_best = 1.0, 0
+        for rtf in UP[1:]:
+            if not rung(rtf)['sustained']:
+                break
+            best = rtf
+    else:
+        lowest = first
+        for rtf in DOWN:
+            result = rung(rtf)
+            lowest = result
+            if result['sustained']:
+                best, lost_best = rtf, 0
+                break
+        if best == 0.0:
+            lost_best = lowest.get('lost')
     return {'pipeline_max_realtime_factor': best, 'pipeline_lost_messages': lost_best,
             'pipeline_cpu_share': cpu_at_1}
 
@@ -258,7 +272,8 @@ def main(argv: List[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument('--rtf', type=float, default=None, help='one rung only')
     p.add_argument('--duration', type=float, default=DURATION)
-    p.add_argument('--keep', type=Path, default=None, help='keep the runs in this folder')
+    p.add_argument('--keep', type=Path, default=None,
+                   help='the runs go in this folder (default: the bench log folder it prints)')
     p.add_argument('--topics', default='', help='recorder topics, comma-separated '
                                                 '(default: all)')
     p.add_argument('--quick', action='store_true')
@@ -269,10 +284,8 @@ def main(argv: List[str]) -> int:
     topics = [t for t in a.topics.split(',') if t] or None
     if a.keep is not None:
         a.keep.mkdir(parents=True, exist_ok=True)
-        print(json.dumps(measure(a.rtf, a.duration, a.keep, topics)))
-    else:
-        with tempfile.TemporaryDirectory(prefix='saw_bench_pipeline_') as tmp:
-            print(json.dumps(measure(a.rtf, a.duration, Path(tmp), topics)))
+    from . import log_dir
+    print(json.dumps(measure(a.rtf, a.duration, a.keep or log_dir('pipeline'), topics)))
     return 0
 
 

@@ -10,12 +10,15 @@ that fails; ``sim_max_realtime_factor`` is the last one sustained (0 if even the
 ``sim_lost_messages`` the messages lost at real_time_factor 1.0.
 
 Both processes and the bench share a 2-core machine with whatever else runs: figures are noisy.
+A rung whose simulator or subscriber does not exit in time is a failed rung (``hung`` names the
+process, ``simulator_state`` says how far its log got); the processes are stopped and their
+logs kept in ``log_dir('simulator_node')/rtf_<factor>/`` (the bench prints the folder).
 """
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -94,47 +97,81 @@ def subscriber(steps: int, timeout: float) -> int:
     return 0
 
 
-def measure(rtf: float, duration: float, log_dir: Path) -> dict:
-    """One rung: simulator + subscriber processes in a private domain."""
+def simulator_state(log: str) -> str:
+    """How far a simulator's log got: where a rung that hung stood."""
+    if 'subscribers present' not in log and 'waiting for' in log:
+        return 'never started stepping (waiting for subscribers: discovery)'
+    if 'reached after' not in log:
+        return 'stepping, duration not reached'
+    return 'duration reached, did not exit (stop path)'
+
+
+def _wait(proc, timeout: float):
+    """Exit code, or None if ``proc`` is still running after ``timeout`` s."""
+    try:
+        return proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return None
+
+
+def measure(rtf: float, duration: float, log_dir: Path, timeout: float = None) -> dict:
+    """One rung: simulator + subscriber processes in a private domain. Never raises for a
+    process that hangs: the rung fails (``hung``) and the processes are stopped. ``timeout``:
+    for the simulator (default 3 x the expected wall time + 30 s)."""
     from ..process import ManagedProcess, isolated_ros_env, node_command
+    from . import tail
     env = isolated_ros_env()
     steps = int(round(duration * 1000))
-    timeout = duration / rtf * 3 + 30
-    sub = ManagedProcess(f'subscriber_{rtf:g}', [sys.executable, '-m', __name__, '--subscriber',
-                                                  str(steps), str(timeout)], env, log_dir)
-    sim = ManagedProcess(f'simulator_{rtf:g}', node_command('simulator', params={
+    if timeout is None:
+        timeout = duration / rtf * 3 + 30
+    logs = Path(log_dir) / f'rtf_{rtf:g}'
+    sub = ManagedProcess('subscriber', [sys.executable, '-m', __name__, '--subscriber',
+                                        str(steps), str(timeout)], env, logs)
+    sim = ManagedProcess('simulator', node_command('simulator', params={
         'real_time_factor': float(rtf), 'duration': float(duration), 'wait_for_subscribers': 1}),
-        env, log_dir)
+        env, logs)
+    result = {'rtf': rtf}
+    hung = []
     try:
-        sim_code = sim.wait(timeout=timeout)
-        sub.wait(timeout=30)
+        sim_code = _wait(sim, timeout)
+        if sim_code is None:
+            hung.append(f'simulator did not exit within {timeout:.0f} s')
+            result['simulator_state'] = simulator_state(sim.output())
+        if _wait(sub, 30.0 if sim_code is not None else 5.0) is None:
+            hung.append('subscriber did not exit')
     finally:
         for proc in (sim, sub):
             if proc.returncode is None:
                 proc.stop(timeout=5)
-    result = {'rtf': rtf, 'simulator_exit': sim_code}
+    result['simulator_exit'] = sim.returncode
     for line in sub.output().splitlines():
         if line.startswith('{'):
             result.update(json.loads(line))
     result.setdefault('lost', 6 * steps)
     result['behind_warnings'] = sim.output().count('falling behind')
-    result['sustained'] = (sim_code == 0 and result['lost'] == 0 and result.get('bad', 1) == 0
+    if hung:
+        result['hung'] = '; '.join(hung)
+        result['logs'] = str(logs)
+        result['simulator_log_tail'] = tail(sim.log_path, 3)
+    result['sustained'] = (not hung and sim_code == 0 and result['lost'] == 0
+                           and result.get('bad', 1) == 0
                            and result.get('achieved_rtf', 0.0) >= 0.97 * rtf)
     return result
 
 
 def run(quick: bool = False) -> dict:
+    from . import log_dir
     duration = 10.0 if quick else 60.0
     best, lost_at_1 = 0.0, None
-    with tempfile.TemporaryDirectory(prefix='saw_bench_sim_') as tmp:
-        for rtf in LADDER:
-            result = measure(rtf, duration, Path(tmp))
-            print(f'bench simulator_node: {json.dumps(result)}', file=sys.stderr)
-            if rtf == 1.0:
-                lost_at_1 = result['lost']
-            if not result['sustained']:
-                break
-            best = rtf
+    logs = log_dir('simulator_node')
+    for rtf in LADDER:
+        result = measure(rtf, duration, logs)
+        print(f'bench simulator_node: {json.dumps(result)}', file=sys.stderr, flush=True)
+        if rtf == 1.0:
+            lost_at_1 = result['lost']
+        if not result['sustained']:
+            break
+        best = rtf
     return {'sim_max_realtime_factor': best, 'sim_lost_messages': lost_at_1}
 
 

@@ -1,12 +1,18 @@
 """Measure the figures each issue names and print them (``--json``: one JSON object).
 
 Every module in ``saw_ros/benchmarks/`` contributes its keys; ``--only`` picks modules.
+Subprocess logs go to one folder per run (``--logs``, default ``out/bench_<date-time>/``,
+printed on stderr). A module that fails anyway (an exception) does not end the bench: its keys
+are null, ``bench_errors`` says why (the traceback is in ``<logs>/<module>.error``), the other
+modules run and the exit code is 1.
 """
 import importlib
 import json
+import os
 import pkgutil
 import sys
 import time
+import traceback
 
 from .. import benchmarks
 
@@ -23,6 +29,8 @@ def add_arguments(p):
     p.add_argument('--only', default='', help='comma-separated benchmark modules: '
                    + ', '.join(name for name, _ in modules()))
     p.add_argument('--quick', action='store_true', help='shorter runs (less precise)')
+    p.add_argument('--logs', default='', help='folder for the subprocess logs (default '
+                   'out/bench_<date-time>)')
 
 
 def run(args):
@@ -32,12 +40,22 @@ def run(args):
     if unknown:
         from ..cli import UserError
         raise UserError(f'unknown benchmark(s) {sorted(unknown)}; known: {sorted(known)}')
-    results = {}
+    if args.logs:
+        os.environ[benchmarks.LOGS_ENV] = args.logs
+    benchmarks.logs_root()          # made and printed now, whichever module uses it
+    results, errors = {}, {}
     for name, module in modules():
         if wanted and name not in wanted:
             continue
         start = time.perf_counter()
-        figures = module.run(quick=args.quick)
+        try:
+            figures = module.run(quick=args.quick)
+        except Exception as exc:  # noqa: BLE001  (one module's failure is not the bench's)
+            error = benchmarks.logs_root() / f'{name}.error'
+            error.write_text(traceback.format_exc())
+            errors[name] = f'{type(exc).__name__}: {exc} (see {error})'
+            print(f'bench: {name} failed: {errors[name]}', file=sys.stderr, flush=True)
+            figures = {key: None for key in getattr(module, 'KEYS', ())}
         results.update(figures)
         if not args.json:
             print(f'[{name}] ({time.perf_counter() - start:.1f} s)')
@@ -45,6 +63,10 @@ def run(args):
                 print(f'  {key:32s} {value}')
         else:
             print(f'bench: {name} done in {time.perf_counter() - start:.1f} s', file=sys.stderr)
+    if errors:
+        results['bench_errors'] = errors
     if args.json:
         print(json.dumps(results, sort_keys=True))
-    return 0
+    elif errors:
+        print('failed: ' + '; '.join(f'{n}: {e}' for n, e in errors.items()))
+    return 1 if errors else 0
