@@ -25,6 +25,7 @@ def test_a_hanging_simulator_is_a_failed_rung_with_its_logs_kept(tmp_path, monke
     assert result['sustained'] is False
     assert result['hung'].startswith('simulator did not exit within 2 s'), result
     assert result['simulator_state'].startswith('never started stepping'), result
+    assert result['simulator_cpu_at_timeout'] < 0.5      # asleep: stuck, not slow
     logs = tmp_path / 'rtf_1.5'
     assert result['logs'] == str(logs)
     assert 'waiting for 1 subscriber' in (logs / 'simulator.log').read_text()

@@ -11,8 +11,10 @@ that fails; ``sim_max_realtime_factor`` is the last one sustained (0 if even the
 
 Both processes and the bench share a 2-core machine with whatever else runs: figures are noisy.
 A rung whose simulator or subscriber does not exit in time is a failed rung (``hung`` names the
-process, ``simulator_state`` says how far its log got); the processes are stopped and their
-logs kept in ``log_dir('simulator_node')/rtf_<factor>/`` (the bench prints the folder).
+process, ``simulator_state`` says how far its log got, ``simulator_cpu_at_timeout`` whether it
+was still stepping: a loaded machine that runs it below a third of the asked factor, or stuck);
+the processes are stopped and their logs kept in ``log_dir('simulator_node')/rtf_<factor>/``
+(the bench prints the folder).
 """
 from __future__ import annotations
 
@@ -106,6 +108,23 @@ def simulator_state(log: str) -> str:
     return 'duration reached, did not exit (stop path)'
 
 
+def _cpu_share(pid: int, span: float = 1.0) -> float:
+    """Fraction of a core ``pid`` uses over ``span`` s (nan if unreadable): a simulator still
+    stepping (too slow for the timeout) uses CPU, one that is stuck does not."""
+    import os
+
+    def cpu():
+        with open(f'/proc/{pid}/stat') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    try:
+        c0, t0 = cpu(), time.monotonic()
+        time.sleep(span)
+        return round((cpu() - c0) / (time.monotonic() - t0), 3)
+    except (OSError, IndexError, ValueError):
+        return float('nan')
+
+
 def _wait(proc, timeout: float):
     """Exit code, or None if ``proc`` is still running after ``timeout`` s."""
     try:
@@ -137,6 +156,7 @@ def measure(rtf: float, duration: float, log_dir: Path, timeout: float = None) -
         if sim_code is None:
             hung.append(f'simulator did not exit within {timeout:.0f} s')
             result['simulator_state'] = simulator_state(sim.output())
+            result['simulator_cpu_at_timeout'] = _cpu_share(sim.proc.pid)
         if _wait(sub, 30.0 if sim_code is not None else 5.0) is None:
             hung.append('subscriber did not exit')
     finally:
