@@ -18,14 +18,16 @@ CONFIG_DIR = Path(__file__).resolve().parent.parent / 'msg_config'
 
 
 def config_path(name: str) -> Path:
-    """A file of msg_config/, from the source tree or from the installed share directory."""
+    """A file of msg_config/: from the source tree (a checkout, an editable install), else from
+    the installed ``share/saw_ros/msg_config`` (pip or colcon install, found from this package's
+    own location, then the ament index; no sourced environment needed)."""
     local = CONFIG_DIR / name
     if local.exists():
         return local
+    from .share import PackageNotFound, share_file
     try:
-        from ament_index_python.packages import get_package_share_directory
-        return Path(get_package_share_directory('saw_ros')) / 'msg_config' / name
-    except Exception:  # no ament index: report the source-tree path in the error
+        return Path(share_file('saw_ros', 'msg_config', name))
+    except PackageNotFound:  # report the source-tree path in the caller's error
         return local
 
 

@@ -4,14 +4,16 @@ rosbag2 (``rosbag2_cpp/.../local_message_definition_source.cpp``) builds a ``ros
 the installed ``share/<pkg>/msg/<Type>.msg`` files: the root text, then every dependency once,
 depth first, in sorted order of the names found in each text, each one introduced by a line of 80
 ``=`` and ``MSG: <pkg>/<Type>``. The type hash is ``type_hashes[0]`` of the ``.json`` beside it.
+The files are looked up without ``AMENT_PREFIX_PATH`` when possible (``saw_ros.share``).
 """
 from __future__ import annotations
 
 import functools
 import json
-import os
 import re
 from typing import Set, Tuple
+
+from ..share import PackageNotFound, share_file
 
 # The same pattern rosbag2 uses: the first word of a line followed by blanks is a field type.
 _FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
@@ -35,17 +37,19 @@ def split_type(type_name: str) -> Tuple[str, str, str]:
 
 
 def _share_file(type_name: str, extension: str) -> str:
-    from ament_index_python.packages import (PackageNotFoundError,
-                                             get_package_share_directory)
+    """``share/<pkg>/<namespace>/<Type><extension>`` of the installed interface package: found
+    beside its Python package (no sourced environment needed), else through the ament index."""
     pkg, namespace, name = split_type(type_name)
     try:
-        share = get_package_share_directory(pkg)
-    except (PackageNotFoundError, LookupError, ValueError) as exc:
-        raise UnknownMessageType(f'{type_name}: package {pkg!r} not found ({exc})') from None
-    path = os.path.join(share, namespace, name + extension)
-    if not os.path.isfile(path):
-        raise UnknownMessageType(f'{type_name}: no {path}')
-    return path
+        return share_file(pkg, namespace, name + extension)
+    except PackageNotFound as exc:
+        raise UnknownMessageType(f'{type_name}: {exc}') from None
+
+
+def check_definitions() -> None:
+    """Raise UnknownMessageType (one line saying what to source) if message definitions cannot be
+    found at all: a recorder calls it before creating its bag."""
+    message_definition('builtin_interfaces/msg/Time')
 
 
 @functools.lru_cache(maxsize=None)

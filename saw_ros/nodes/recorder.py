@@ -47,6 +47,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from saw_ros.bag.schema import UnknownMessageType, check_definitions
 from saw_ros.bag.writer import BagWriteError, BagWriter, INFINITE, qos_profile_dict
 from saw_ros.nodes.common import NodeFailure, run_node
 
@@ -69,20 +70,14 @@ LARGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
 
 
 def default_topics():
-    """(topics, prefixes) from msg_config/record_topics.yaml (installed share or the source)."""
-    candidates = []
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        candidates.append(os.path.join(get_package_share_directory('saw_ros'), 'msg_config'))
-    except Exception:  # noqa: BLE001  (not installed: use the source tree)
-        pass
-    candidates.append(os.path.join(os.path.dirname(__file__), '..', '..', 'msg_config'))
-    for folder in candidates:
-        path = os.path.join(folder, 'record_topics.yaml')
-        if os.path.isfile(path):
-            with open(path, encoding='utf-8') as f:
-                doc = yaml.safe_load(f) or {}
-            return list(doc.get('topics') or []), list(doc.get('prefixes') or [])
+    """(topics, prefixes) from msg_config/record_topics.yaml (source tree or installed share, as
+    config_path finds it: no ament index needed)."""
+    from saw_ros.config import config_path
+    path = config_path('record_topics.yaml')
+    if path.is_file():
+        with open(path, encoding='utf-8') as f:
+            doc = yaml.safe_load(f) or {}
+        return list(doc.get('topics') or []), list(doc.get('prefixes') or [])
     return ['/clock'], ['/saw/']
 
 
@@ -223,9 +218,10 @@ class Recorder(Node):
         output = self.get_parameter('output').value or default_output(
             self.get_parameter('bags_dir').value, self.get_parameter('label').value)
         try:
+            check_definitions()  # before creating anything: else one line saying what to source
             self.bag = BagWriter(output, chunk_size=int(self.get_parameter('chunk_size').value),
                                  compression=self.get_parameter('compression').value)
-        except (BagWriteError, ValueError) as exc:
+        except (BagWriteError, UnknownMessageType, ValueError) as exc:
             raise NodeFailure(f'refusing to record: {exc}') from None
         self._depth = int(self.get_parameter('queue_depth').value)
         self._queue: 'queue.SimpleQueue' = queue.SimpleQueue()
