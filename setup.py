@@ -16,6 +16,10 @@ setup(
         ('share/' + package_name + '/msg_config', glob('msg_config/*')),
     ],
     install_requires=['setuptools'],
+    # colcon test runs pytest only for a package that declares it as a test requirement
+    # (colcon-core: tests_require or extras_require['test']); otherwise it falls back to
+    # unittest, which finds none of our pytest tests and reports OK.
+    extras_require={'test': ['pytest', 'pytest-timeout']},
     zip_safe=True,
     maintainer='saw_ros developers',
     maintainer_email='saw_ros@example.com',

@@ -1,24 +1,67 @@
-"""`ros2 run` readiness of the pip install (scripts/bootstrap.sh): executables where ros2 run looks
-(<prefix>/lib/saw_ros/<exe>), the ament index entry, package.xml format 3, the shared config."""
+"""`ros2 run` readiness of the install the suite runs against, in either layout:
+- venv: scripts/bootstrap.sh's pip install into .venv (the venv is laid out like a ROS install
+  prefix: executables in <venv>/lib/saw_ros/<exe>, the ament index entry, share/saw_ros);
+- colcon: `colcon build` then `colcon test` in a workspace (install/saw_ros/..., tests run from
+  the source folder with the install on PYTHONPATH and AMENT_PREFIX_PATH).
+Tests that only make sense in one layout skip with the reason in the other. None writes into the
+source tree. Also: package.xml format 3, setup.py's test requirement, the shared config."""
 import os
 import re
+import runpy
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from unittest import mock
 
 import pytest
 
 from saw_ros.process import isolated_ros_env
 
 ROOT = Path(__file__).resolve().parents[1]
-PREFIX = Path(sys.prefix)          # the venv is laid out like a ROS install prefix
+MARKER = Path('share', 'ament_index', 'resource_index', 'packages', 'saw_ros')
+
+
+def installed_prefix():
+    """The install prefix of saw_ros this suite runs against: the venv itself (bootstrap.sh), else
+    the first prefix of AMENT_PREFIX_PATH that lists saw_ros (colcon test sets it), else None."""
+    candidates = [sys.prefix] + os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
+    for prefix in filter(None, candidates):
+        if (Path(prefix) / MARKER).is_file():
+            return Path(prefix)
+    return None
+
+
+PREFIX = installed_prefix()
+BOOTSTRAP_VENV = PREFIX is not None and PREFIX.resolve() == (ROOT / '.venv').resolve()
+COLCON = PREFIX is not None and (PREFIX / 'share/colcon-core/packages/saw_ros').is_file()
+LAYOUT = 'venv' if BOOTSTRAP_VENV else 'colcon' if COLCON else 'other' if PREFIX else 'none'
+
+needs_install = pytest.mark.skipif(
+    PREFIX is None, reason='saw_ros is not installed here: run scripts/test.sh (bootstraps .venv) '
+    'or colcon build + colcon test')
+venv_only = pytest.mark.skipif(
+    not BOOTSTRAP_VENV, reason=f"checks scripts/bootstrap.sh's .venv; this run's install is "
+    f"{LAYOUT} ({PREFIX})")
 
 
 def console_scripts():
     text = (ROOT / 'setup.py').read_text()
     nodes = re.search(r"NODES = \(([^)]*)\)", text).group(1)
     return re.findall(r"'([a-z_]+)'", nodes)
+
+
+def setup_arguments():
+    """The keyword arguments setup.py passes to setup(), without running setuptools."""
+    captured = {}
+    cwd = os.getcwd()
+    os.chdir(ROOT)      # setup.py globs msg_config/ relative to its folder, as colcon runs it
+    try:
+        with mock.patch('setuptools.setup', lambda **kw: captured.update(kw)):
+            runpy.run_path(str(ROOT / 'setup.py'), run_name='__main__')
+    finally:
+        os.chdir(cwd)
+    return captured
 
 
 def test_package_xml_is_format_3_ament_python():
@@ -41,27 +84,64 @@ def test_setup_installs_config_and_ament_marker_for_colcon():
     assert 'simulator' in console_scripts()
 
 
+def test_setup_declares_pytest_so_colcon_test_runs_the_suite():
+    """colcon-core's python test step picks pytest only if tests_require or
+    extras_require['test'] names it; otherwise unittest finds no test and reports OK."""
+    args = setup_arguments()
+    test_requires = list(args.get('tests_require') or []) + list(
+        (args.get('extras_require') or {}).get('test') or [])
+    assert 'pytest' in [re.split(r'[ <>=!\[]', r)[0] for r in test_requires]
+    # Every file of msg_config/ is installed (colcon: data_files; the nodes read them there).
+    installed = {name for dest, files in args['data_files'] if dest.endswith('/msg_config')
+                 for name in (Path(f).name for f in files)}
+    assert installed == {p.name for p in (ROOT / 'msg_config').iterdir()}
+
+
+@needs_install
 @pytest.mark.parametrize('exe', console_scripts())
 def test_executables_where_ros2_run_looks(exe):
     path = PREFIX / 'lib' / 'saw_ros' / exe
-    assert path.exists(), f'{path} missing: run scripts/bootstrap.sh'
+    assert path.exists(), f'{path} missing: run scripts/bootstrap.sh or colcon build'
     assert os.access(path, os.X_OK), f'{path} is not executable'
 
 
-def test_ament_index_finds_the_package_with_the_bootstrap_environment():
-    script = ('source scripts/bootstrap.sh >/dev/null && python -c "'
-              'from ament_index_python.packages import get_package_prefix, '
-              'get_package_share_directory as share; '
-              "print(get_package_prefix('saw_ros')); print(share('saw_ros'))\"")
-    out = subprocess.run(['bash', '-c', script], cwd=ROOT, capture_output=True, text=True,
+@needs_install
+def test_installed_share_has_package_xml_and_every_config_file():
+    share = PREFIX / 'share' / 'saw_ros'
+    assert (share / 'package.xml').is_file()
+    for path in (ROOT / 'msg_config').iterdir():
+        assert (share / 'msg_config' / path.name).is_file(), f'{path.name} not installed in {share}'
+
+
+@needs_install
+def test_ament_index_finds_the_installed_package():
+    """The install is an ament prefix of saw_ros (what `ros2 run` needs), with AMENT_PREFIX_PATH
+    as scripts/bootstrap.sh or a colcon setup.bash exports it."""
+    code = ('from ament_index_python.packages import get_package_prefix, '
+            'get_package_share_directory as share; '
+            "print(get_package_prefix('saw_ros')); print(share('saw_ros'))")
+    env = dict(os.environ, AMENT_PREFIX_PATH=str(PREFIX))
+    out = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0, out.stderr
     prefix, share = out.stdout.split()
     assert Path(prefix).resolve() == PREFIX.resolve()
-    assert (Path(share) / 'package.xml').is_file()
     assert (Path(share) / 'msg_config' / 'simulator.yaml').is_file()
 
 
+@venv_only
+def test_bootstrap_environment_exports_the_ament_prefix():
+    """`source scripts/bootstrap.sh` (the venv exists already: nothing is created) puts the venv
+    first in AMENT_PREFIX_PATH, so that ament tools and `ros2 run` see saw_ros."""
+    env = {k: v for k, v in os.environ.items() if k != 'AMENT_PREFIX_PATH'}
+    out = subprocess.run(['bash', '-c', 'source scripts/bootstrap.sh >/dev/null && '
+                          'echo "$AMENT_PREFIX_PATH"'], cwd=ROOT, env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert Path(out.stdout.strip().split(os.pathsep)[0]).resolve() == PREFIX.resolve()
+
+
+@needs_install
 @pytest.mark.ros
 def test_simulator_runs_from_lib_saw_ros_with_the_installed_config(tmp_path):
     exe = PREFIX / 'lib' / 'saw_ros' / 'simulator'
