@@ -5,20 +5,22 @@ import stat
 
 import pytest
 import yaml
-from ament_index_python.packages import get_package_share_directory
 from mcap.reader import make_reader
 from mcap_ros2._dynamic import serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory
 
 from saw_ros.bag import BagExistsError, BagReader, BagWriteError, BagWriter, qos_profile_dict
 from saw_ros.bag.schema import message_definition, type_hash
+from saw_ros.share import share_file
 
 POSE = 'geometry_msgs/msg/PoseStamped'
 DELIM = '=' * 80 + '\n'
 
 
 def share(pkg, name):
-    with open(os.path.join(get_package_share_directory(pkg), 'msg', name), newline='') as f:
+    # Installed files found beside the Python package: a colcon test without underlay has only
+    # the workspace in AMENT_PREFIX_PATH (test_no_ament_env checks the lookup itself).
+    with open(share_file(pkg, 'msg', name), newline='') as f:
         return f.read()
 
 
@@ -48,7 +50,7 @@ def test_schema_text_is_rosbag2s_depth_first_concatenation():
 
 
 def test_type_hash_is_the_installed_json_hash():
-    path = os.path.join(get_package_share_directory('geometry_msgs'), 'msg', 'PoseStamped.json')
+    path = share_file('geometry_msgs', 'msg', 'PoseStamped.json')
     with open(path) as f:
         assert type_hash(POSE) == json.load(f)['type_hashes'][0]['hash_string']
     assert type_hash(POSE).startswith('RIHS01_')
