@@ -1,23 +1,97 @@
 """Read a bag directory (or one ``.mcap`` file): messages in file order, and a summary like
-``ros2 bag info``. Unfinished files (the recorder was killed) are read up to their last complete
-chunk; ``BagReader.complete`` then says False.
+``ros2 bag info``.
+
+Two kinds of trouble are told apart:
+- an unfinished file (the recorder was killed: no summary, a record cut off at the end) is read
+  up to its last complete record; ``BagReader.complete`` then says False. Not an error.
+- damaged bytes: a chunk whose CRC (of its uncompressed records) does not match, that does not
+  decompress or parse, a record running past the data section of a finished file, a data-section
+  or summary CRC that does not match. By default ``messages()`` raises BagDamagedError at the
+  damage and ``topics()``/``info()`` raise it after a full scan (naming each damaged chunk, its
+  log time range and message count, and how many messages are readable); with
+  ``BagReader(path, salvage=True)`` every readable message is read, the damaged chunks are
+  skipped and listed in ``BagReader.damage``.
 """
 from __future__ import annotations
 
 import glob
+import io
 import os
+import struct
+import zlib
 from dataclasses import dataclass, field
 from typing import Dict, Iterable, Iterator, List, Optional
 
 import yaml
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Channel, Footer, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, ChunkIndex, Metadata, Schema, Statistics
+
+MAGIC = b'\x89MCAP0\r\n'
+_RECORD = struct.Struct('<BQ')            # opcode, body length
+_FOOTER = struct.Struct('<BQQQI')         # opcode, length, summary start, offsets start, CRC
+_CHUNK = struct.Struct('<QQQI')           # start time, end time, uncompressed size, CRC
+_MESSAGE = struct.Struct('<HIQQ')         # channel id, sequence, log time, publish time
+_U32, _U64 = struct.Struct('<I'), struct.Struct('<Q')
+_FOOTER_OP, _SCHEMA, _CHANNEL, _MESSAGE_OP, _CHUNK_OP = 0x02, 0x03, 0x04, 0x05, 0x06
+_MESSAGE_INDEX, _CHUNK_INDEX, _STATISTICS, _DATA_END = 0x07, 0x08, 0x0B, 0x0F
+_MAX_CHUNK = 1 << 32     # larger uncompressed sizes are damage, not allocations to try
 
 
 class BagReadError(OSError):
     """Not a bag, or not readable (the message says which and why)."""
+
+
+class BagDamagedError(BagReadError):
+    """Bytes of the bag are damaged (not merely cut off at the end); ``damage`` lists where."""
+
+    def __init__(self, message: str, damage: List['Damage']):
+        super().__init__(message)
+        self.damage = damage
+
+
+class BagDecodeError(BagReadError):
+    """A message's bytes do not decode with its schema (the message names topic and message)."""
+
+
+def stamp(ns: Optional[int]) -> str:
+    """ns since the epoch as seconds.nanoseconds (or n/a)."""
+    if ns is None:
+        return 'n/a'
+    return f'{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}'
+
+
+@dataclass
+class Damage:
+    """One damaged place of a file: a chunk (``chunk`` = its number, from 1), or another part of
+    the file (``chunk`` None: a record, the data section, the summary)."""
+    file: str
+    offset: Optional[int]                 # where in the file (None: not one place)
+    reason: str
+    chunk: Optional[int] = None
+    chunks: Optional[int] = None          # chunks in the file (when its summary says)
+    start: Optional[int] = None           # log time range of the chunk (index or chunk record)
+    end: Optional[int] = None
+    messages: Optional[int] = None        # messages lost with it, if known
+    topics: List[str] = field(default_factory=list)
+
+    def describe(self) -> str:
+        if self.chunk is None:
+            where = os.path.basename(self.file)
+            if self.offset is not None:
+                where += f' at offset {self.offset}'
+        else:
+            of = f' of {self.chunks}' if self.chunks else ''
+            where = f'{os.path.basename(self.file)} chunk {self.chunk}{of} (offset {self.offset}'
+            if self.start is not None:
+                where += f', log time {stamp(self.start)} .. {stamp(self.end)}'
+            if self.messages is not None:
+                where += f', {self.messages} messages'
+                if self.topics:
+                    where += ' of ' + ', '.join(sorted(self.topics))
+            where += ')'
+        return f'{where}: {self.reason}'
 
 
 @dataclass
@@ -60,12 +134,147 @@ def _channel_qos(channel: Channel) -> List[dict]:
     return profiles if isinstance(profiles, list) else []
 
 
+class _Short(ValueError):
+    pass
+
+
+class _Exact(io.BytesIO):
+    """A record body for mcap's record parsers: a read past its end is an error (mcap's
+    ReadDataStream would return the short bytes)."""
+
+    def read(self, n=-1):
+        data = super().read(n)
+        if n is not None and n >= 0 and len(data) != n:
+            raise _Short(f'record ends {n - len(data)} bytes early')
+        return data
+
+
+def _parse(cls, body):
+    return cls.read(ReadDataStream(_Exact(bytes(body))))
+
+
+def _decompress(compression: str, data, size: int) -> bytes:
+    if compression == 'zstd':
+        import zstandard
+        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
+    if compression == 'lz4':
+        import lz4.frame
+        return lz4.frame.decompress(data)
+    if compression == '':
+        return bytes(data)
+    raise ValueError(f'unknown compression {compression!r}')
+
+
+def _records(data) -> Iterator[tuple]:
+    """(opcode, body) of every record in ``data`` (a chunk's records); ValueError if cut."""
+    view, pos, n = memoryview(data), 0, len(data)
+    while pos < n:
+        if n - pos < 9:
+            raise ValueError(f'{n - pos} stray bytes at the end of the records')
+        opcode, length = _RECORD.unpack_from(data, pos)
+        pos += 9
+        if length > n - pos:
+            raise ValueError(f'a record (opcode {opcode:#04x}) runs {length - (n - pos)} bytes '
+                             'past the end of the records')
+        yield opcode, view[pos:pos + length]
+        pos += length
+
+
+class _Summary:
+    """What a finished file's footer and summary section say (empty for an unfinished file)."""
+
+    def __init__(self):
+        self.finished = False
+        self.data_end = None        # offset where the summary (or the footer) starts
+        self.schemas: Dict[int, Schema] = {}
+        self.channels: Dict[int, Channel] = {}
+        self.chunks: Dict[int, ChunkIndex] = {}   # by chunk start offset
+        self.message_count: Optional[int] = None
+
+
+def _read_summary(f, size: int, path: str, damage: List[Damage]) -> _Summary:
+    out = _Summary()
+    if size < len(MAGIC) * 2 + _FOOTER.size:
+        return out
+    f.seek(size - len(MAGIC) - _FOOTER.size)
+    tail = f.read(_FOOTER.size + len(MAGIC))
+    if tail[-len(MAGIC):] != MAGIC:
+        return out
+    opcode, length, summary_start, _, summary_crc = _FOOTER.unpack_from(tail)
+    footer_at = size - len(MAGIC) - _FOOTER.size
+    if opcode != _FOOTER_OP or length != 20 or summary_start > footer_at:
+        return out
+    out.finished = True
+    out.data_end = summary_start or footer_at
+    if not summary_start:
+        return out
+    f.seek(summary_start)
+    data = f.read(footer_at - summary_start)
+    if summary_crc and zlib.crc32(tail[:25], zlib.crc32(data)) != summary_crc:
+        damage.append(Damage(path, summary_start, 'summary section (schemas, channels, chunk and '
+                                                  'message indexes) CRC mismatch; not used',
+                             messages=0))
+        return out
+    try:
+        for opcode, body in _records(data):
+            if opcode == _SCHEMA:
+                schema = _parse(Schema, body)
+                out.schemas[schema.id] = schema
+            elif opcode == _CHANNEL:
+                channel = _parse(Channel, body)
+                out.channels[channel.id] = channel
+            elif opcode == _CHUNK_INDEX:
+                index = _parse(ChunkIndex, body)
+                out.chunks[index.chunk_start_offset] = index
+            elif opcode == _STATISTICS:
+                out.message_count = _parse(Statistics, body).message_count
+    except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
+        damage.append(Damage(path, summary_start, f'summary section unreadable ({exc}); not used',
+                             messages=0))
+        return _finished_only(out)
+    return out
+
+
+def _finished_only(summary: _Summary) -> _Summary:
+    out = _Summary()
+    out.finished, out.data_end = summary.finished, summary.data_end
+    return out
+
+
+def _open_chunk(body) -> bytes:
+    """The uncompressed records of a chunk record's body, their CRC checked."""
+    _, _, size, crc = _CHUNK.unpack_from(body)
+    pos = _CHUNK.size
+    name_length, = _U32.unpack_from(body, pos)
+    compression = bytes(body[pos + 4:pos + 4 + name_length]).decode('utf-8')
+    pos += 4 + name_length
+    data_length, = _U64.unpack_from(body, pos)
+    pos += 8
+    if data_length > len(body) - pos:
+        raise ValueError(f'its data ({data_length} bytes) runs past the chunk record')
+    if size > _MAX_CHUNK:
+        raise ValueError(f'its uncompressed size ({size} bytes) is implausible')
+    try:
+        records = _decompress(compression, memoryview(body)[pos:pos + data_length], size)
+    except ValueError:
+        raise
+    except Exception as exc:  # noqa: BLE001  (zstandard.ZstdError, lz4's RuntimeError)
+        raise ValueError(f'its {compression} data do not decompress ({exc})') from None
+    if len(records) != size:
+        raise ValueError(f'it decompresses to {len(records)} bytes, not the {size} it states')
+    if crc and zlib.crc32(records) != crc:
+        raise ValueError(f'CRC mismatch of its uncompressed records (stored {crc:#010x}, '
+                         f'computed {zlib.crc32(records):#010x})')
+    return records
+
+
 class BagReader:
-    def __init__(self, path: str):
+    def __init__(self, path: str, salvage: bool = False):
         path = os.path.abspath(path)
         if not os.path.exists(path):
             raise BagReadError(f'no bag at {path}')
         self.path = path
+        self.salvage = salvage
         self.metadata: Optional[dict] = None
         if os.path.isdir(path):
             meta_path = os.path.join(path, 'metadata.yaml')
@@ -86,60 +295,264 @@ class BagReader:
         for f in self.files:
             if not os.path.isfile(f):
                 raise BagReadError(f'{f} is missing')
-        self.complete = True      # False once a scan met an unfinished file
-        self.unread_bytes = 0     # bytes after the last complete record of an unfinished file
+        # What the last scan of each file found: bytes after its last complete record (None:
+        # finished), damaged places, messages read, messages its summary counts.
+        self._tail: Dict[str, Optional[int]] = {}
+        self._damage: Dict[str, List[Damage]] = {}
+        self._read: Dict[str, int] = {}
+        self._expected: Dict[str, Optional[int]] = {}
+        self._collect = False     # a full scan in progress: note damage, raise at the end
+
+    @property
+    def complete(self) -> bool:
+        """False once a scan met an unfinished file (no summary: the recorder was killed)."""
+        return not any(n is not None for n in self._tail.values())
+
+    @property
+    def unread_bytes(self) -> int:
+        """Bytes after the last complete record of the unfinished files."""
+        return sum(n for n in self._tail.values() if n is not None)
+
+    @property
+    def damage(self) -> List[Damage]:
+        """Damaged places found by the scans so far (each file's last scan)."""
+        return [d for f in self.files for d in self._damage.get(f, [])]
+
+    def damage_report(self) -> str:
+        """What is damaged (a line each) and how many messages are readable."""
+        lines = [d.describe() for d in self.damage]
+        read = sum(self._read.values())
+        total = self.expected_messages()
+        lines.append(f'{read} of {total} messages readable' if total is not None
+                     else f'{read} messages readable')
+        return '\n  '.join(lines)
+
+    def expected_messages(self) -> Optional[int]:
+        """Messages the files should hold: their summaries' statistics, else metadata.yaml's
+        count, else what was read plus what the damage lost (None: unknown)."""
+        if self._expected and all(n is not None for n in self._expected.values()):
+            return sum(self._expected.values())
+        if self.metadata and self.complete and isinstance(self.metadata.get('message_count'), int):
+            return self.metadata['message_count']
+        lost = [d.messages for d in self.damage]
+        if all(n is not None for n in lost):
+            return sum(self._read.values()) + sum(lost)
+        return None
+
+    def _damaged(self, path: str, damage: Damage) -> None:
+        self._damage.setdefault(path, []).append(damage)
+        if not (self.salvage or self._collect):
+            raise BagDamagedError(
+                f'{path} is damaged: {damage.describe()}; {self._read.get(path, 0)} messages read '
+                'before it (saw-ros bag info --salvage, or BagReader(path, salvage=True), reads '
+                'around the damage)', [damage])
 
     # ---- messages
     def messages(self, topics: Optional[Iterable[str]] = None) -> Iterator[BagMessage]:
-        """Every message of the bag in file order (= receive order for our recordings)."""
+        """Every message of the bag in file order (= log time order for our recordings).
+        Raises BagDamagedError at damaged bytes unless the reader salvages."""
         wanted = set(topics) if topics is not None else None
         for path in self.files:
             yield from self._scan(path, wanted)
 
     def _scan(self, path: str, wanted) -> Iterator[BagMessage]:
-        schemas: Dict[int, Schema] = {}
-        channels: Dict[int, Channel] = {}
-        finished = False
+        self._damage[path], self._read[path], self._tail[path] = [], 0, None
+        found: List[Damage] = []
         with open(path, 'rb') as f:
             size = os.fstat(f.fileno()).st_size
-            records = StreamReader(f, skip_magic=False).records
-            while True:
+            head = f.read(len(MAGIC))
+            if head != MAGIC[:len(head)]:
+                raise BagReadError(f'{path} is not an MCAP file (no MCAP magic at its start)')
+            summary = _read_summary(f, size, path, found)
+            self._expected[path] = summary.message_count
+            for d in found:
+                self._damaged(path, d)
+            if len(head) < len(MAGIC):
+                self._tail[path] = len(head)
+                return
+            f.seek(len(MAGIC))
+            yield from self._scan_records(f, path, size, summary, wanted)
+
+    def _scan_records(self, f, path, size, summary: _Summary, wanted) -> Iterator[BagMessage]:
+        schemas: Dict[int, Schema] = dict(summary.schemas)
+        channels: Dict[int, Channel] = dict(summary.channels)
+        data_end = summary.data_end if summary.finished else size
+        crc = zlib.crc32(MAGIC)
+        pos = len(MAGIC)
+        chunk_number = 0
+        lost: Optional[Damage] = None     # the damaged chunk whose message indexes follow
+        orphans: Dict[int, int] = {}      # channel id: messages whose channel is unknown
+        read = 0
+        chunk_offsets = sorted(summary.chunks)
+        ordinal = {offset: i + 1 for i, offset in enumerate(chunk_offsets)}
+        while True:
+            head = f.read(9)
+            if len(head) < 9 or pos + 9 > data_end:
+                if summary.finished:
+                    self._damaged(path, Damage(path, pos, 'the data section ends without its '
+                                                          'DataEnd record'))
+                else:
+                    self._tail[path] = size - pos
+                break
+            opcode, length = _RECORD.unpack(head)
+            if length > data_end - pos - 9:
+                if not summary.finished:       # cut off at the end: the recorder was killed
+                    self._tail[path] = size - pos
+                    break
+                index = summary.chunks.get(pos)
+                later = [o for o in chunk_offsets if o > pos]
+                if index is not None:  # a chunk whose length field is damaged: skip it by index
+                    chunk_number = ordinal[pos]
+                    lost = self._chunk_damage(path, pos, chunk_number, summary, index,
+                                              f'its record length ({length} bytes) runs past '
+                                              'the data section')
+                    self._damaged(path, lost)
+                    resume = pos + index.chunk_length
+                else:
+                    self._damaged(path, Damage(
+                        path, pos, f'a record (opcode {opcode:#04x}) claims {length} bytes, past '
+                        'the data section' + ('' if later else '; nothing after it is readable')))
+                    if not later:
+                        break
+                    resume = later[0]
+                crc = None                     # the data-section CRC cannot be checked now
+                f.seek(resume)
+                pos = resume
+                continue
+            body = f.read(length)
+            before = crc
+            if crc is not None:
+                crc = zlib.crc32(body, zlib.crc32(head, crc))
+            at, pos = pos, pos + 9 + length
+            if opcode == _CHUNK_OP:
+                chunk_number = ordinal.get(at, chunk_number + 1)
+                lost = None
                 try:
-                    record = next(records)
-                except StopIteration:
-                    break
-                except Exception:  # noqa: BLE001  (a truncated tail: McapError, struct.error,
-                    # EOFError, zlib.error... from the incomplete record; keep what was complete)
-                    self.complete = False
-                    self.unread_bytes += max(0, size - f.tell())
-                    break
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Message):
-                    channel = channels.get(record.channel_id)
-                    if channel is None or (wanted is not None and channel.topic not in wanted):
+                    records = _open_chunk(body)
+                except Exception as exc:  # noqa: BLE001  (zstd and lz4 raise their own types)
+                    lost = self._chunk_damage(path, at, chunk_number, summary,
+                                              summary.chunks.get(at), str(exc), body)
+                    self._damaged(path, lost)
+                    continue
+                batch = []
+                try:
+                    for op, rec in _records(records):
+                        if op == _MESSAGE_OP:
+                            batch.append(_MESSAGE.unpack_from(rec) + (rec,))
+                        elif op == _SCHEMA:
+                            schema = _parse(Schema, rec)
+                            schemas[schema.id] = schema
+                        elif op == _CHANNEL:
+                            channel = _parse(Channel, rec)
+                            channels[channel.id] = channel
+                except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
+                    lost = self._chunk_damage(path, at, chunk_number, summary,
+                                              summary.chunks.get(at),
+                                              f'its records do not parse ({exc})', body)
+                    self._damaged(path, lost)
+                    continue
+                for channel_id, sequence, log_time, publish_time, rec in batch:
+                    channel = channels.get(channel_id)
+                    if channel is None:
+                        orphans[channel_id] = orphans.get(channel_id, 0) + 1
+                        continue
+                    read += 1
+                    self._read[path] = read
+
+                    if wanted is not None and channel.topic not in wanted:
                         continue
                     schema = schemas.get(channel.schema_id)
-                    yield BagMessage(channel.topic, schema.name if schema else '', record.data,
-                                     record.log_time, record.publish_time, record.sequence,
-                                     channel, schema)
-                elif isinstance(record, Footer):
-                    finished = True
-        if not finished:
-            self.complete = False
+                    yield BagMessage(channel.topic, schema.name if schema else '',
+                                     bytes(rec[_MESSAGE.size:]), log_time, publish_time,
+                                     sequence, channel, schema)
+            elif opcode == _MESSAGE_INDEX and lost is not None and len(body) >= 6:
+                channel_id, = struct.unpack_from('<H', body)
+                count = _U32.unpack_from(body, 2)[0] // 16
+                lost.messages = (lost.messages or 0) + count
+                channel = channels.get(channel_id)
+                name = channel.topic if channel is not None else f'channel {channel_id}'
+                if name not in lost.topics:
+                    lost.topics.append(name)
+            elif opcode == _MESSAGE_OP:
+                channel_id, sequence, log_time, publish_time = _MESSAGE.unpack_from(body)
+                channel = channels.get(channel_id)
+                if channel is None:
+                    orphans[channel_id] = orphans.get(channel_id, 0) + 1
+                    continue
+                read += 1
+                self._read[path] = read
+                if wanted is None or channel.topic in wanted:
+                    schema = schemas.get(channel.schema_id)
+                    yield BagMessage(channel.topic, schema.name if schema else '', body[22:],
+                                     log_time, publish_time, sequence, channel, schema)
+            elif opcode in (_SCHEMA, _CHANNEL):   # outside chunks (other writers)
+                try:
+                    record = _parse(Schema if opcode == _SCHEMA else Channel, body)
+                except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
+                    kind = 'schema' if opcode == _SCHEMA else 'channel'
+                    self._damaged(path, Damage(path, at, f'a {kind} record does not parse ({exc})'))
+                    continue
+                (schemas if opcode == _SCHEMA else channels)[record.id] = record
+            elif opcode == _DATA_END:
+                stored = _U32.unpack_from(body)[0] if len(body) >= 4 else 0
+                if before is not None and stored and stored != before \
+                        and not self._damage.get(path):  # damaged chunks explain it already
+                    self._damaged(path, Damage(
+                        path, at, f'data section CRC mismatch (stored {stored:#010x}, computed '
+                        f'{before:#010x}): bytes outside the chunks (message indexes...) are '
+                        'damaged', messages=0))
+                break
+            elif opcode == _FOOTER_OP:
+                break
+        if orphans:
+            ids = ', '.join(f'{n} on channel {c}' for c, n in sorted(orphans.items()))
+            self._damaged(path, Damage(path, None, f'{sum(orphans.values())} messages whose '
+                                                   f'channel is defined nowhere readable ({ids}): '
+                                                   'its definition was in a damaged chunk',
+                                       messages=sum(orphans.values())))
+        self._read[path] = read
+
+    @staticmethod
+    def _chunk_damage(path, offset, number, summary: _Summary, index: Optional[ChunkIndex],
+                      reason: str, body=None) -> Damage:
+        """A damaged chunk, with its log time range from the summary's chunk index (else from
+        the chunk record itself)."""
+        start = end = None
+        if index is not None:
+            start, end = index.message_start_time, index.message_end_time
+        elif body is not None and len(body) >= 16:
+            start, end = struct.unpack_from('<QQ', body)
+        return Damage(path, offset, reason, chunk=number, chunks=len(summary.chunks) or None,
+                      start=start, end=end)
 
     def decoded_messages(self, topics: Optional[Iterable[str]] = None):
         """(BagMessage, ROS-like message object) decoded with mcap_ros2 (no rclpy needed)."""
         from mcap_ros2.decoder import DecoderFactory
         factory = DecoderFactory()
         decoders = {}
+        numbers: Dict[str, int] = {}
         for m in self.messages(topics):
+            number = numbers[m.topic] = numbers.get(m.topic, 0) + 1
             decoder = decoders.get(m.channel.id)
             if decoder is None:
-                decoder = decoders[m.channel.id] = factory.decoder_for('cdr', m.schema)
-            yield m, decoder(m.data)
+                try:
+                    decoder = factory.decoder_for(m.channel.message_encoding, m.schema)
+                except Exception as exc:  # noqa: BLE001  (mcap_ros2's schema parser errors)
+                    raise BagDecodeError(f'{m.topic} [{m.type or "no schema"}]: no decoder from '
+                                         f'its schema: {type(exc).__name__}: {exc}') from exc
+                if decoder is None:
+                    raise BagDecodeError(f'{m.topic}: no decoder for encoding '
+                                         f'{m.channel.message_encoding!r} with schema '
+                                         f'{m.type or "(none)"}')
+                decoders[m.channel.id] = decoder
+            try:
+                decoded = decoder(m.data)
+            except Exception as exc:  # noqa: BLE001  (struct.error, IndexError... on bad bytes)
+                raise BagDecodeError(
+                    f'{m.topic} [{m.type}] message {number} of the topic (log time '
+                    f'{stamp(m.log_time)}, sequence {m.sequence}, {len(m.data)} bytes) does not '
+                    f'decode: {type(exc).__name__}: {exc}') from exc
+            yield m, decoded
 
     def rosbag2_metadata_records(self) -> List[Metadata]:
         out = []
@@ -153,20 +566,29 @@ class BagReader:
 
     # ---- summary
     def topics(self) -> Dict[str, TopicSummary]:
-        """Per topic: type, count, first/last log time, QoS (a full scan of the files)."""
+        """Per topic: type, count, first/last log time, QoS (a full scan of the files).
+        Raises BagDamagedError, listing all the damage, unless the reader salvages."""
         out: Dict[str, TopicSummary] = {}
-        for m in self.messages():
-            t = out.get(m.topic)
-            if t is None:
-                t = out[m.topic] = TopicSummary(
-                    m.topic, m.type, m.channel.message_encoding,
-                    offered_qos_profiles=_channel_qos(m.channel),
-                    type_hash=m.channel.metadata.get('topic_type_hash', ''))
-            t.count += 1
-            if t.first is None or m.log_time < t.first:
-                t.first = m.log_time
-            if t.last is None or m.log_time > t.last:
-                t.last = m.log_time
+        self._collect = True
+        try:
+            for m in self.messages():
+                t = out.get(m.topic)
+                if t is None:
+                    t = out[m.topic] = TopicSummary(
+                        m.topic, m.type, m.channel.message_encoding,
+                        offered_qos_profiles=_channel_qos(m.channel),
+                        type_hash=m.channel.metadata.get('topic_type_hash', ''))
+                t.count += 1
+                if t.first is None or m.log_time < t.first:
+                    t.first = m.log_time
+                if t.last is None or m.log_time > t.last:
+                    t.last = m.log_time
+        finally:
+            self._collect = False
+        if self.damage and not self.salvage:
+            raise BagDamagedError(f'{self.path} is damaged:\n  {self.damage_report()}\n'
+                                  '(saw-ros bag info --salvage, or BagReader(path, '
+                                  'salvage=True), reads the rest)', self.damage)
         # Topics registered but without messages come from metadata.yaml.
         for entry in (self.metadata or {}).get('topics_with_message_count') or []:
             meta = entry.get('topic_metadata', {})
@@ -181,16 +603,19 @@ class BagReader:
         topics = self.topics()
         starts = [t.first for t in topics.values() if t.first is not None]
         ends = [t.last for t in topics.values() if t.last is not None]
-        start = min(starts) if starts else 0
-        end = max(ends) if ends else 0
+        start = min(starts) if starts else None
+        end = max(ends) if ends else None
         return {
             'path': self.path,
             'files': [os.path.basename(f) for f in self.files],
             'size': sum(os.path.getsize(f) for f in self.files),
             'storage': 'mcap',
-            'start': start, 'end': end, 'duration': end - start,
+            'start': start, 'end': end, 'duration': end - start if starts else 0,
             'messages': sum(t.count for t in topics.values()),
             'topics': topics,
             'complete': self.complete,
+            'unread_bytes': self.unread_bytes,
+            'damage': self.damage,
+            'expected_messages': self.expected_messages(),
             'has_metadata_yaml': self.metadata is not None,
         }

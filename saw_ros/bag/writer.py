@@ -4,6 +4,8 @@ its MCAP storage (metadata.yaml version 9, ``ros2`` profile, ``ros2msg`` schemas
 
 Every chunk goes to the file as soon as it fills, unbuffered, so a process killed with SIGKILL
 leaves its complete chunks readable; ``close()`` (idempotent) writes the summary and metadata.yaml.
+Chunks carry a CRC of their uncompressed records, and the data section a CRC in DataEnd, so that a
+reader can tell damaged bytes from a file cut short.
 Not thread-safe: one thread writes (the recorder gives it a thread of its own).
 """
 from __future__ import annotations
@@ -137,7 +139,8 @@ class BagWriter:
             raise ValueError(f'compression must be zstd or none, not {compression!r}')
         self._mcap = Writer(self._stream, chunk_size=chunk_size,
                             compression=(CompressionType.ZSTD if compression == 'zstd'
-                                         else CompressionType.NONE))
+                                         else CompressionType.NONE),
+                            enable_data_crcs=True)
         self._mcap.start(profile='ros2', library='saw_ros (mcap-python)')
         self._schemas: Dict[str, int] = {}
         self._topics: Dict[str, _Topic] = {}

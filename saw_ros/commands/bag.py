@@ -1,7 +1,11 @@
 """Inspect and record bags (rosbag2 directories with MCAP storage).
 
   saw-ros bag info BAG        what ``ros2 bag info`` shows: files, size, duration, start/end,
-                              messages, and per topic type, count, rate and serialisation
+                              messages, and per topic type, count, rate and serialisation;
+                              an unfinished file (recorder killed) is read up to its last
+                              complete chunk (exit 0, "State: unfinished"); damaged bytes (a
+                              chunk failing its CRC...) are an error (exit 1) naming each
+                              damaged chunk, unless --salvage: then the rest is listed (exit 0)
   saw-ros bag record [...]    run the recorder node until Ctrl-C (same as
                               ``ros2 run saw_ros recorder``; see docs/bags.md)
   saw-ros bag play BAG [...]  run the player node on BAG
@@ -20,6 +24,8 @@ def add_arguments(p):
     sub = p.add_subparsers(dest='bag_command', metavar='ACTION', required=True)
     info = sub.add_parser('info', help='summarise a bag like ros2 bag info')
     info.add_argument('bag', help='bag directory (or .mcap file)')
+    info.add_argument('--salvage', action='store_true',
+                      help='read around damaged chunks and list what was skipped (exit 0)')
     rec = sub.add_parser('record', help='record topics until Ctrl-C')
     rec.add_argument('topics', nargs='*', help='topics (default: msg_config/record_topics.yaml)')
     rec.add_argument('-o', '--output', default='', help='bag directory (must not exist)')
@@ -29,7 +35,9 @@ def add_arguments(p):
     play.add_argument('-r', '--rate', type=float, default=1.0, help='speed factor')
 
 
-def _stamp(ns: int) -> str:
+def _stamp(ns) -> str:
+    if ns is None:
+        return 'n/a'
     when = datetime.datetime.fromtimestamp(ns / 1e9)
     return (f'{when:%b %d %Y %H:%M:%S}.{ns % 1_000_000_000:09d} '
             f'({ns // 1_000_000_000}.{ns % 1_000_000_000:09d})')
@@ -51,8 +59,17 @@ def format_info(info: dict) -> str:
              f'Start:             {_stamp(info["start"])}',
              f'End:               {_stamp(info["end"])}',
              f'Messages:          {info["messages"]}']
+    if info.get('damage'):
+        total = info.get('expected_messages')
+        of = f' of {total}' if total is not None else ''
+        lines.append(f'State:             DAMAGED, salvaged: {info["messages"]}{of} messages read, '
+                     f'{len(info["damage"])} damaged place(s) skipped')
+        lines += [f'Damaged:           {d.describe()}' for d in info['damage']]
     if not info['complete']:
-        lines.append('State:             unfinished file (recorder killed?): complete chunks read')
+        cut = info.get('unread_bytes', 0)
+        lines.append('State:             unfinished file (recorder killed?): read up to its last '
+                     'complete record' + (f'; the last {cut} bytes (an incomplete record) not read'
+                                          if cut else ''))
     if not info['has_metadata_yaml']:
         lines.append('metadata.yaml:     missing (read from the MCAP file)')
     topics = sorted(info['topics'].values(), key=lambda t: t.name)
@@ -76,9 +93,12 @@ def _node(name, params):
 def run(args):
     from ..cli import UserError
     if args.bag_command == 'info':
-        from ..bag.reader import BagReader, BagReadError
+        from ..bag.reader import BagDamagedError, BagReader, BagReadError
         try:
-            print(format_info(BagReader(args.bag).info()))
+            print(format_info(BagReader(args.bag, salvage=args.salvage).info()))
+        except BagDamagedError as exc:
+            print(f'saw-ros bag: error: {exc}', file=sys.stderr)
+            return 1
         except BagReadError as exc:
             raise UserError(str(exc)) from None
         return 0
