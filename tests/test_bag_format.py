@@ -56,8 +56,8 @@ def test_type_hash_is_the_installed_json_hash():
     assert type_hash(POSE).startswith('RIHS01_')
 
 
-def write_bag(directory, n=300, chunk_size=4096, close=True):
-    bag = BagWriter(str(directory), chunk_size=chunk_size)
+def write_bag(directory, n=300, chunk_size=4096, close=True, **options):
+    bag = BagWriter(str(directory), chunk_size=chunk_size, **options)
     bag.add_topic('/saw/pose', POSE, [qos_profile_dict(reliability='reliable')])
     bag.add_topic('/clock', 'rosgraph_msgs/msg/Clock', [qos_profile_dict()])
     clock = encoder('rosgraph_msgs/msg/Clock')
@@ -125,14 +125,16 @@ def test_round_trip_read_by_mcap_and_mcap_ros2(tmp_path):
 
 
 def test_unfinished_file_keeps_its_complete_chunks(tmp_path):
-    bag, _ = write_bag(tmp_path / 'killed', n=1000, close=False)  # as after kill -9
+    # as after kill -9 (a 20 ms reorder window: the default 0.5 s would hold half of this 1 s)
+    bag, _ = write_bag(tmp_path / 'killed', n=1000, close=False, reorder_window_ns=20_000_000)
     path = tmp_path / 'killed' / 'killed_0.mcap'
     with open(path, 'ab') as f:
         f.write(b'\x06\x40\x00\x00')  # and half a record at the end
     reader = BagReader(str(tmp_path / 'killed'))
     msgs = list(reader.messages(['/saw/pose']))
-    assert not reader.complete
-    assert 900 < len(msgs) < 1000  # all but the last (unflushed) chunk
+    assert not reader.complete and not reader.damage
+    assert reader.unread_bytes >= 4
+    assert 900 < len(msgs) < 1000  # all but the reorder buffer and the last (unflushed) chunk
     assert [m.data for m in msgs] == [pose_bytes(i) for i in range(len(msgs))]
 
 
