@@ -64,6 +64,26 @@ record() {
   kill -INT $rec; wait $rec || true
   tail -1 "$LOGS/rec_$name.log" >&2
   saw-ros bag info "bags/$name"
+  check_order "bags/$name/${name}_0.mcap"
+}
+
+check_order() {  # check_order <file.mcap>: messages in log_time order, chunks apart in time
+  python - "$1" <<'PY'
+import sys
+from mcap.reader import make_reader
+from mcap.records import Message
+from mcap.stream_reader import StreamReader
+with open(sys.argv[1], 'rb') as f:
+    times = [r.log_time for r in StreamReader(f, validate_crcs=True).records
+             if isinstance(r, Message)]
+    f.seek(0)
+    chunks = sorted(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+back = sum(b < a for a, b in zip(times, times[1:]))
+overlaps = sum(b.message_start_time <= a.message_end_time for a, b in zip(chunks, chunks[1:]))
+print(f'{sys.argv[1]}: {len(times)} messages, {back} steps back in log_time; '
+      f'{len(chunks)} chunks, {overlaps} overlapping the next', file=sys.stderr)
+sys.exit(1 if back or overlaps else 0)
+PY
 }
 
 record reference_default "$SIM_TOPICS" 0 -p duration:=2.0
