@@ -17,12 +17,20 @@ Mapping, with points as complex numbers x + i y:
     w = (s - c) e^(i alpha)           surface -> level world (horizontal, up), m
     w = -conj(w) if mirror
     u = cx + scale Re(w),  v = cy - scale Im(w)
+
+Lens distortion (optional, OpenCV's model): ``dist_coeffs`` (k1, k2, p1, p2[, k3[, k4, k5, k6]])
+with the camera matrix they were calibrated with, ``dist_matrix`` (fx, fy, cx, cy; default: this
+model's K). The mapping above is then between the surface and the IDEAL (undistorted) pixels;
+``distort`` takes ideal pixels to where a real lens puts them in the image, ``undistort`` back.
+The renderer draws the ideal image and warps it; the tracker undistorts its marker centres only.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Optional
+from typing import Optional, Tuple
+
+import cv2
 
 import numpy as np
 
@@ -39,6 +47,8 @@ class CameraModel:
     mirror: bool = False         # True: surface +x points to the image's left
     cx: Optional[float] = None   # px, principal point; None = image centre
     cy: Optional[float] = None   # px
+    dist_coeffs: Tuple[float, ...] = ()           # OpenCV (k1, k2, p1, p2[, k3[, k4, k5, k6]])
+    dist_matrix: Optional[Tuple[float, ...]] = None  # (fx, fy, cx, cy) of the calibration; None = K
 
     def __post_init__(self):
         if self.width < 16 or self.height < 16:
@@ -50,6 +60,17 @@ class CameraModel:
         if not abs(self.slope) <= math.pi / 2:
             raise ValueError(f'camera slope = {self.slope!r} rad is invalid: allowed '
                              f'[-pi/2, pi/2]')
+        object.__setattr__(self, 'dist_coeffs', tuple(float(k) for k in self.dist_coeffs))
+        if len(self.dist_coeffs) not in (0, 4, 5, 8) or not all(
+                math.isfinite(k) for k in self.dist_coeffs):
+            raise ValueError(f'camera dist_coeffs = {self.dist_coeffs!r}: give 4, 5 or 8 finite '
+                             f'numbers (k1, k2, p1, p2[, k3[, k4, k5, k6]], OpenCV order)')
+        if self.dist_matrix is not None:
+            m = tuple(float(v) for v in self.dist_matrix)
+            if len(m) != 4 or not (m[0] > 0 and m[1] > 0) or not all(map(math.isfinite, m)):
+                raise ValueError(f'camera dist_matrix = {self.dist_matrix!r}: give (fx, fy, cx, '
+                                 f'cy) with fx, fy > 0')
+            object.__setattr__(self, 'dist_matrix', m)
 
     # -- intrinsics ----------------------------------------------------------------------------
     @property
@@ -72,6 +93,49 @@ class CameraModel:
     @property
     def P(self) -> np.ndarray:
         return np.hstack([self.K, np.zeros((3, 1))])
+
+    @property
+    def distorted(self) -> bool:
+        """True when a lens distortion is set (any coefficient non-zero)."""
+        return any(k != 0.0 for k in self.dist_coeffs)
+
+    def _dist_K(self) -> np.ndarray:
+        if self.dist_matrix is None:
+            return self.K
+        fx, fy, cx, cy = self.dist_matrix
+        return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+
+    def distort(self, pixels):
+        """Ideal pixels (complex u + i v) -> where the lens puts them in the image (OpenCV's
+        distortion model). Identity without a distortion."""
+        p = np.asarray(pixels)
+        if not self.distorted:
+            return p
+        K = self._dist_K()
+        d = np.zeros(8)
+        d[:len(self.dist_coeffs)] = self.dist_coeffs
+        k1, k2, p1, p2, k3, k4, k5, k6 = d
+        x = (p.real - K[0, 2]) / K[0, 0]
+        y = (p.imag - K[1, 2]) / K[1, 1]
+        r2 = x * x + y * y
+        radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        return (K[0, 0] * xd + K[0, 2]) + 1j * (K[1, 1] * yd + K[1, 2])
+
+    def undistort(self, pixels):
+        """Image pixels (complex) -> ideal pixels, the inverse of ``distort`` (OpenCV's iterative
+        undistortPoints, in the calibration's pixel grid). Identity without a distortion."""
+        p = np.asarray(pixels)
+        if not self.distorted:
+            return p
+        flat = np.ascontiguousarray(np.stack([p.real.ravel(), p.imag.ravel()], axis=-1)
+                                    .reshape(-1, 1, 2), dtype=np.float64)
+        if flat.shape[0] == 0:
+            return p.astype(complex)
+        K = self._dist_K()
+        out = cv2.undistortPoints(flat, K, np.asarray(self.dist_coeffs), None, K).reshape(-1, 2)
+        return (out[:, 0] + 1j * out[:, 1]).reshape(p.shape)
 
     @property
     def horizontal_fov(self) -> float:

@@ -15,6 +15,11 @@ the whole render), and a textured background.
 Frames are BGR uint8 (OpenCV order). Everything drawn is anti-aliased with sub-pixel vertices;
 the markers are drawn from their exact coverage so that their intensity centroid is where they
 are (``marker_pixels`` gives it, for tests and benchmarks).
+
+Footage that looks less like this (``scene.SceneOptions``): clutter on the wall or in front of the
+robot, a lighting gradient and flicker, JPEG compression; and, with a camera that has a lens
+distortion, the ideal image warped as the lens would (after blur and lighting, before the
+sensor noise). Order: draw (blur) -> brightness and lighting -> lens -> noise -> JPEG.
 """
 from __future__ import annotations
 
@@ -28,6 +33,7 @@ import numpy as np
 from ..core.kinematics import base_link_end, hinge_x, link_geometry
 from ..core.params import RobotParams
 from .camera import CameraModel
+from .scene import SceneOptions, distortion_maps, draw_clutter, gradient_map, jpeg
 
 SHIFT = 4                       # fixed-point bits for cv2 sub-pixel vertices
 ONE = 1 << SHIFT
@@ -114,8 +120,9 @@ class Renderer:
     """Renders frames of one robot between its surfaces, seen by ``camera``."""
 
     def __init__(self, robot: RobotParams, gap: float, camera: CameraModel,
-                 options: RenderOptions = RenderOptions()):
+                 options: RenderOptions = RenderOptions(), scene: SceneOptions = SceneOptions()):
         self.robot, self.gap, self.camera, self.options = robot, float(gap), camera, options
+        self.scene = scene
         self._table = _GeometryTable(robot)
         self._rng = np.random.default_rng(options.seed)
         L = robot.length
@@ -129,6 +136,8 @@ class Renderer:
         self._frame = np.empty_like(self._background)
         self._noise = self._make_noise() if options.noise > 0 else None
         self._accum = None
+        self._gradient = gradient_map(camera, scene) if scene.gradient > 0 else None
+        self._lens = distortion_maps(camera) if camera.distorted else None
 
     # -- static parts --------------------------------------------------------------------------
     def _make_background(self) -> np.ndarray:
@@ -192,7 +201,11 @@ class Renderer:
 
     def _marker(self, img, centre: complex) -> None:
         """A pink disc drawn from its exact (1-pixel ramp) coverage."""
-        radius = self.options.marker_radius * self.camera.scale
+        self._disc(img, centre, self.options.marker_radius * self.camera.scale, PINK)
+
+    @staticmethod
+    def _disc(img, centre: complex, radius: float, colour) -> None:
+        """A disc (radius px, BGR colour) drawn from its exact (1-pixel ramp) coverage."""
         h, w = img.shape[:2]
         u0 = int(math.floor(centre.real - radius - 1))
         u1 = int(math.ceil(centre.real + radius + 2))
@@ -206,7 +219,7 @@ class Renderer:
         dist = np.sqrt(uu[None, :] ** 2 + vv[:, None] ** 2)
         a = np.clip(radius + 0.5 - dist, 0.0, 1.0)[..., None].astype(np.float32)
         patch = img[v0c:v1c, u0c:u1c]
-        patch[...] = (patch * (1.0 - a) + np.array(PINK, np.float32) * a + 0.5).astype(np.uint8)
+        patch[...] = (patch * (1.0 - a) + np.array(colour, np.float32) * a + 0.5).astype(np.uint8)
 
     # -- public --------------------------------------------------------------------------------
     def marker_surface(self, pose: RobotPose):
@@ -215,15 +228,25 @@ class Renderer:
         rot = complex(math.cos(pose.theta), math.sin(pose.theta))
         return com + rot * self.options.front_marker, com + rot * self.options.back_marker
 
-    def marker_pixels(self, pose: RobotPose):
-        """(front, back) marker centres in pixels (complex u + i v)."""
+    def _ideal_pixels(self, pose: RobotPose):
         front, back = self.marker_surface(pose)
         p = self.camera.to_pixels(np.array([front, back]))
         return complex(p[0]), complex(p[1])
 
-    def draw(self, pose: RobotPose, out: np.ndarray, hidden: Iterable[str] = ()) -> np.ndarray:
-        """Draw the scene at one instant into ``out`` (no blur, brightness or noise)."""
+    def marker_pixels(self, pose: RobotPose):
+        """(front, back) marker centres in the image, pixels (complex u + i v); through the lens
+        distortion when the camera has one."""
+        p = self.camera.distort(np.array(self._ideal_pixels(pose)))
+        return complex(p[0]), complex(p[1])
+
+    def draw(self, pose: RobotPose, out: np.ndarray, hidden: Iterable[str] = (),
+             t: float = 0.0) -> np.ndarray:
+        """Draw the scene at one instant (time t for moving clutter) into ``out``, ideal (no
+        lens), no blur, brightness or noise."""
         np.copyto(out, self._background)
+        clutter = self.scene.clutter
+        if clutter:
+            draw_clutter(out, self.camera, clutter, t, 'wall', self._disc)
         centres, direction, base_end, up, down = self._table.at(pose.phase)
         com = complex(pose.x, pose.y)
         rot = complex(math.cos(pose.theta), math.sin(pose.theta))
@@ -247,11 +270,13 @@ class Renderer:
         cv2.polylines(out, list(pix), True, LINK_EDGE, 1, cv2.LINE_AA, SHIFT)
         self._fill(out, [world(self._head), world(self._tail)], BODY)
         hidden = set(hidden)
-        front, back = self.marker_pixels(pose)
+        front, back = self._ideal_pixels(pose)
         if 'front' not in hidden:
             self._marker(out, front)
         if 'back' not in hidden:
             self._marker(out, back)
+        if clutter:
+            draw_clutter(out, self.camera, clutter, t, 'front', self._disc)
         return out
 
     def render(self, pose: RobotPose, hidden: Iterable[str] = (),
@@ -260,8 +285,10 @@ class Renderer:
         """One finished frame (a new array). With motion blur (options.exposure > 0) give
         ``pose_at(time)`` and the frame time ``t``: sub-frames are drawn over
         [t - exposure / 2, t + exposure / 2]."""
-        opt = self.options
+        opt, scene = self.options, self.scene
         cam = self.camera
+        t_frame = 0.0 if t is None else t
+        brightness = opt.brightness * scene.gain(t_frame)
         if opt.exposure > 0 and opt.blur_samples > 1 and pose_at is not None and t is not None:
             if self._accum is None:
                 self._accum = np.zeros((cam.height, cam.width, 3), np.float32)
@@ -269,14 +296,24 @@ class Renderer:
             n = opt.blur_samples
             for k in range(n):
                 tk = t + opt.exposure * ((k + 0.5) / n - 0.5)
-                cv2.accumulate(self.draw(pose_at(tk), self._frame, hidden), self._accum)
-            frame = cv2.convertScaleAbs(self._accum, alpha=opt.brightness / n)
+                cv2.accumulate(self.draw(pose_at(tk), self._frame, hidden, tk), self._accum)
+            if self._gradient is not None:
+                frame = cv2.multiply(self._accum, self._gradient, scale=brightness / n,
+                                     dtype=cv2.CV_8U)
+            else:
+                frame = cv2.convertScaleAbs(self._accum, alpha=brightness / n)
         else:
-            self.draw(pose, self._frame, hidden)
-            if opt.brightness != 1.0:
-                frame = cv2.convertScaleAbs(self._frame, alpha=opt.brightness)
+            self.draw(pose, self._frame, hidden, t_frame)
+            if self._gradient is not None:
+                frame = cv2.multiply(self._frame, self._gradient, scale=brightness,
+                                     dtype=cv2.CV_8U)
+            elif brightness != 1.0:
+                frame = cv2.convertScaleAbs(self._frame, alpha=brightness)
             else:
                 frame = self._frame.copy()
+        if self._lens is not None:
+            frame = cv2.remap(frame, self._lens[0], self._lens[1], cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
         if self._noise is not None:
             pos, neg = self._noise
             dy, dx = self._rng.integers(0, 32, 2)
@@ -284,6 +321,8 @@ class Renderer:
             cv2.add(frame, pos[dy:dy + h, dx:dx + w], dst=frame)
             # Same offset for both halves: pos - neg is the Gaussian sample itself.
             cv2.subtract(frame, neg[dy:dy + h, dx:dx + w], dst=frame)
+        if scene.compression == 'jpeg':
+            frame = jpeg(frame, scene.quality)
         return frame
 
 
