@@ -52,8 +52,9 @@ PARAMETERS = (
     ('center_x', 0.33, 'surface-frame x seen at the principal point [m]'),
     ('center_y', 0.0225, 'surface-frame y seen at the principal point [m]'),
     ('mirror', False, 'true when the robot travels towards the left of the image'),
-    ('hue_min', 145, 'pink hue window, OpenCV hue 0-179 (wraps through 0 if min > max)'),
-    ('hue_max', 5, 'pink hue window upper end'),
+    ('hue_min', TrackerConfig.hue_min, 'pink hue window, OpenCV hue 0-179 (wraps through 0 if '
+                                       'min > max)'),
+    ('hue_max', TrackerConfig.hue_max, 'pink hue window upper end'),
     ('sat_min', 70, 'least saturation 0-255'),
     ('val_min', 60, 'least value 0-255'),
     ('pink_min', 60.0, 'least pinkness R + B - 2G of a detected pixel [grey levels]'),
