@@ -206,6 +206,7 @@ class BagWriter:
         # The idle flush runs on a thread of its own; the lock keeps it apart from the writer.
         self._lock = threading.Lock()
         self._stop = threading.Event()
+        self._idle_error: Optional[BaseException] = None   # raised by the next write or close
         self._idle_thread = None
         if idle_flush_s:
             self._idle_thread = threading.Thread(target=self._idle_flush,
@@ -250,6 +251,8 @@ class BagWriter:
         if publish_time is None:
             publish_time = log_time
         with self._lock:
+            if self._idle_error is not None:
+                self._raise_idle_error()
             if log_time < self._written:  # later than the window: in order, a little late
                 lateness = self._written - log_time
                 self.late_messages += 1
@@ -294,7 +297,15 @@ class BagWriter:
             if quiet >= idle_s and self.buffered:
                 with self._lock:
                     if not self.closed and self._arrivals == seen:
-                        self._flush_until(1 << 63)
+                        try:
+                            self._flush_until(1 << 63)
+                        except Exception as exc:  # noqa: BLE001  (disk full...): raised in
+                            self._idle_error = exc  # the writing thread by its next call
+                            return
+
+    def _raise_idle_error(self) -> None:
+        exc, self._idle_error = self._idle_error, None
+        raise BagWriteError(f'writing {self.directory} failed: {exc}') from exc
 
     def _flush_until(self, log_time: int) -> None:
         batch = []
@@ -371,6 +382,9 @@ class BagWriter:
             self.closed = True
         if self._idle_thread is not None:
             self._idle_thread.join()
+        if self._idle_error is not None:
+            self._stream.close()
+            self._raise_idle_error()
         try:
             self._flush_until(1 << 63)
             info = self.metadata()
