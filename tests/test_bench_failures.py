@@ -71,3 +71,33 @@ def test_one_real_rung_passes_through_measure(tmp_path):
     assert 'hung' not in result, result
     assert result['simulator_exit'] == 0, result
     assert result['received'] > 0
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_a_domain_another_run_publishes_in_is_left_for_another(tmp_path, monkeypatch):
+    """Random domain ids of concurrent runs collide on a shared machine: another simulator's
+    messages counted as ours and kept the bench's subscriber alive past the rung (the
+    TimeoutExpired of issue 10). The subscriber finds the other publishers first; the rung is
+    run in another domain."""
+    import random
+
+    from saw_ros import process
+    from saw_ros.benchmarks import simulator_node
+    from saw_ros.process import ManagedProcess, isolated_ros_env, node_command, wait_for
+    env = isolated_ros_env()
+    taken = int(env['ROS_DOMAIN_ID'])
+    other = ManagedProcess('other_run', node_command('simulator', params={
+        'real_time_factor': 0.1}), env, tmp_path / 'other')
+    try:
+        assert wait_for(lambda: 'simulating at' in other.output(), 30), other.output()
+        picks = iter([taken])
+        monkeypatch.setattr(process.random, 'randint',
+                            lambda a, b: next(picks, None) or random.Random().randint(a, b))
+        result = simulator_node.measure(1.0, 1.0, tmp_path)
+    finally:
+        other.stop()
+    assert result['busy_domains'] == [taken], result
+    assert result['domain'] != taken
+    assert result['publishers'] == 1 and result['simulator_exit'] == 0, result
+    assert result['received'] <= 6000 and result['bad'] == 0, result
