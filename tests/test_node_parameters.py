@@ -52,7 +52,8 @@ class ParameterClient:
     def set(self, name, value):
         from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter
-        request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+        request = SetParameters.Request(
+            parameters=[Parameter(name, value=value).to_parameter_msg()])
         return self._call(self.set_client, request).results[0]
 
     def get(self, name):

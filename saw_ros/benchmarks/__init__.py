@@ -21,7 +21,7 @@ def logs_root() -> Path:
     if not root:
         root = str(Path('out') / time.strftime('bench_%Y-%m-%d_%H-%M-%S'))
         os.environ[LOGS_ENV] = root
-    path = Path(root)
+    path = Path(root).resolve()
     path.mkdir(parents=True, exist_ok=True)
     if not _announced:
         _announced.append(path)

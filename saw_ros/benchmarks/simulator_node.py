@@ -202,8 +202,9 @@ def _rung(rtf: float, duration: float, logs: Path, timeout) -> dict:
     if timeout is None:
         timeout = duration / rtf * 3 + 30
     result = {'rtf': rtf, 'domain': int(env['ROS_DOMAIN_ID'])}
-    sub = ManagedProcess('subscriber', [sys.executable, '-m', __name__, '--subscriber',
-                                        str(steps), str(timeout)], env, logs)
+    # By module name: __name__ is '__main__' when this file runs as `python -m ...`.
+    sub = ManagedProcess('subscriber', [sys.executable, '-m', 'saw_ros.benchmarks.simulator_node',
+                                        '--subscriber', str(steps), str(timeout)], env, logs)
     sim = None
     hung = []
     sim_code = None
@@ -213,7 +214,10 @@ def _rung(rtf: float, duration: float, logs: Path, timeout) -> dict:
             _wait(sub, 10)
             result['domain_busy'] = True
             return result
-        if 'subscribed' not in sub.output():
+        if sub.returncode is not None and 'subscribed' not in sub.output():
+            from . import tail
+            result['problem'] = f'subscriber exited with {sub.returncode}: {tail(sub.log_path, 2)}'
+        elif 'subscribed' not in sub.output():
             hung.append('subscriber did not start within 30 s')
         else:
             sim = ManagedProcess('simulator', node_command('simulator', params={
@@ -242,6 +246,8 @@ def _rung(rtf: float, duration: float, logs: Path, timeout) -> dict:
     result['behind_warnings'] = sim.output().count('falling behind') if sim is not None else 0
     if hung:
         result['hung'] = '; '.join(hung)
+        result['logs'] = str(logs)
+    if 'problem' in result:
         result['logs'] = str(logs)
     result['sustained'] = (not hung and sim_code == 0 and result['lost'] == 0
                            and result.get('bad', 1) == 0 and result.get('publishers', 1) <= 1
