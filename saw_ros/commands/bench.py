@@ -2,7 +2,7 @@
 
 Every module in ``saw_ros/benchmarks/`` contributes its keys; ``--only`` picks modules.
 Subprocess logs go to one folder per run (``--logs``, default ``out/bench_<date-time>/``,
-printed on stderr). A module that fails anyway (an exception) does not end the bench: its keys
+made and printed on stderr when a module first needs it). A module that fails anyway (an exception) does not end the bench: its keys
 are null, ``bench_errors`` says why (the traceback is in ``<logs>/<module>.error``), the other
 modules run and the exit code is 1.
 """
@@ -42,7 +42,6 @@ def run(args):
         raise UserError(f'unknown benchmark(s) {sorted(unknown)}; known: {sorted(known)}')
     if args.logs:
         os.environ[benchmarks.LOGS_ENV] = args.logs
-    benchmarks.logs_root()          # made and printed now, whichever module uses it
     results, errors = {}, {}
     for name, module in modules():
         if wanted and name not in wanted:
