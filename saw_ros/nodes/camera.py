@@ -275,7 +275,9 @@ class CameraNode(Node):
             try:
                 self._publish(*item)
             except Exception as exc:  # noqa: BLE001  (reported by the executor thread)
-                if self._output_error is None:
+                # run_node closes the node (and this thread) before it shuts the context down;
+                # a context shut down by someone else is a stop, not a failure.
+                if self._output_error is None and self.context.ok():
                     self._output_error = exc
 
     def _publish(self, frame, t_ns: int) -> None:

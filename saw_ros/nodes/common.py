@@ -3,11 +3,20 @@
 main() follows ros2/demos: init, build the node, spin, and on SIGINT/SIGTERM or an external
 shutdown destroy the node and exit 0 without a traceback. A node that must exit with an error
 (a diverging simulation) raises ``NodeFailure``: its message is logged and the exit code is 1.
+
+Stopping (``run_node``): rclpy's own signal handlers are not installed. Theirs shut every context
+down from another thread at once, while the main thread may be in the middle of a callback that
+publishes (``RCLError: publisher's context is invalid``, "failed to initialize wait set") and the
+node's own threads still publish; a KeyboardInterrupt raised inside a callback made the events
+executor log FATAL. Here SIGINT and SIGTERM only request the stop: the spin loop sees it between
+two 0.1 s slices and returns, then the node's ``close()`` finishes its work and stops its threads,
+the node is destroyed and only then the context shut down.
 """
 from __future__ import annotations
 
 import signal
-from typing import Callable, Optional
+import time
+from typing import Callable, List, Optional
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 
@@ -56,6 +65,10 @@ LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+# s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.
+FLUSH_TIMEOUT = 5.0
+
+
 class NodeFailure(RuntimeError):
     """The node cannot go on (the reason is the message): log it and exit with status 1."""
 
@@ -73,57 +86,156 @@ def make_executor(context=None):
         return SingleThreadedExecutor(context=context)
 
 
-def spin_events(node, until: Optional[Callable[[], bool]] = None) -> None:
-    """Spin ``node`` on ``make_executor()`` until shutdown or ``until()`` holds.
+class _StopRequest:
+    """SIGINT/SIGTERM seen by ``run_node``'s handler (on the main thread, between bytecodes).
 
-    Spins in 0.1 s slices: Python signal handlers (SIGTERM here) run between slices, and
-    ``until`` is checked at least that often."""
-    import rclpy
-    executor = make_executor(node.context)
+    ``interrupt``: also raise KeyboardInterrupt, as Python's own Ctrl-C does. Only while a node's
+    own loop runs on the main thread outside any executor (the player's ``play()``, loadgen's
+    ``run()``): there nothing is half-done in rclpy, and the context stays valid for ``close()``.
+    Never in an executor's callbacks, never while the node is built or closed."""
+    requested = False
+    interrupt = False
+
+
+_STOP = _StopRequest()
+
+
+def _on_stop_signal(signum, frame) -> None:
+    _STOP.requested = True
+    if _STOP.interrupt:
+        _STOP.interrupt = False     # once: a second signal must not break the clean-up
+        raise KeyboardInterrupt
+
+
+def spin_node(node, until: Optional[Callable[[], bool]] = None, executor=None) -> None:
+    """Spin ``node`` on ``executor`` (default: ``make_executor()``) until a stop is requested
+    (SIGINT, SIGTERM), its context is shut down or ``until()`` holds.
+
+    Spins in 0.1 s slices: the stop request and ``until`` are checked at least that often, and
+    between callbacks only (the signal handler just sets the request)."""
+    if executor is None:
+        executor = make_executor(node.context)
     executor.add_node(node)
+    interrupt, _STOP.interrupt = _STOP.interrupt, False
     try:
-        while rclpy.ok(context=node.context) and not (until is not None and until()):
+        while not _STOP.requested and node.context.ok() and not (until is not None and until()):
             executor.spin_once(timeout_sec=0.1)
     finally:
+        _STOP.interrupt = interrupt and not _STOP.requested
         try:
             executor.remove_node(node)
         finally:
             executor.shutdown(timeout_sec=0)
 
 
+def spin_events(node, until: Optional[Callable[[], bool]] = None) -> None:
+    """``spin_node`` on the EventsExecutor (``make_executor()``)."""
+    spin_node(node, until)
+
+
+def _context_gone(exc: BaseException, node) -> bool:
+    """``exc`` is rcl refusing to work because the context was shut down (an external shutdown,
+    or another process' signal handling): a stop, not a failure."""
+    from rclpy.exceptions import InvalidHandle
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    if not isinstance(exc, (_rclpy.RCLError, InvalidHandle)):
+        return False
+    import rclpy
+    context = node.context if node is not None else rclpy.get_default_context()
+    return not context.ok()
+
+
 def run_node(make_node: Callable[[], 'object'], args=None,
              spin: Optional[Callable[[object], None]] = None, events: bool = False) -> int:
     """Build and spin a node until Ctrl-C, SIGTERM, shutdown or NodeFailure; return exit code.
 
-    ``spin(node)`` replaces the default spinning; ``events``: spin on the EventsExecutor
-    (``spin_events``) instead of ``rclpy.spin``'s SingleThreadedExecutor."""
+    ``spin(node)`` replaces the default spinning (a loop of its own or ``spin_node``); else
+    ``spin_node`` on the EventsExecutor (``events``) or the SingleThreadedExecutor. Either way
+    SIGINT and SIGTERM end spinning (module docstring), then ``node.close()`` runs (if the node
+    has one: finish files, stop the node's threads), subscribers get up to FLUSH_TIMEOUT to
+    acknowledge the last messages (``flush``), the node is destroyed and the context shut
+    down, in that order; exit code 0."""
     import rclpy
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
-    rclpy.init(args=args)
-    # SIGTERM (kill, systemd, our own supervisor) stops the node like Ctrl-C does.
-    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    # No rclpy signal handlers (they would shut the context down under a running callback):
+    # ours only request the stop, from before rcl starts (checked once the node is built).
+    _STOP.requested, _STOP.interrupt = False, False
+    previous = {sig: signal.signal(sig, _on_stop_signal) for sig in (signal.SIGINT,
+                                                                    signal.SIGTERM)}
     node = None
     code = 0
     try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         node = make_node()
-        if spin is not None:
-            spin(node)
-        elif events:
-            spin_events(node)
+        if _STOP.requested:
+            pass                      # stopped while the node was being built
+        elif spin is not None:
+            _STOP.interrupt = True    # a loop of its own; spin_node turns this off
+            try:
+                if not _STOP.requested:   # (a signal just before interrupt was set)
+                    spin(node)
+            finally:
+                _STOP.interrupt = False
         else:
-            rclpy.spin(node)
+            spin_node(node, executor=None if events else SingleThreadedExecutor(
+                context=node.context))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except NodeFailure as exc:
         logger = node.get_logger() if node is not None else rclpy.logging.get_logger('saw_ros')
         logger.fatal(str(exc))
         code = 1
+    except Exception as exc:  # noqa: BLE001  (re-raised unless the context went away)
+        if not _context_gone(exc, node):
+            raise
     finally:
-        if node is not None:
-            close = getattr(node, 'close', None)
-            if close is not None:
-                close()
-            node.destroy_node()
-        rclpy.try_shutdown()
+        _STOP.interrupt = False
+        try:
+            if node is not None:
+                _close(node)
+        finally:
+            rclpy.try_shutdown()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
     return code
+
+
+def flush(node, timeout: float = FLUSH_TIMEOUT) -> List[str]:
+    """Wait, ``timeout`` s at most in all, until every reliable subscriber has acknowledged what
+    ``node``'s publishers published; warn about and return the topics where one did not.
+
+    A process that exits at once takes the samples a reliable subscriber has not received yet
+    with it (a subscriber that fell behind on a busy machine lost the last 0.2 s of 1 kHz steps
+    and the camera's last frames that way); the bound keeps a subscriber that stalled or
+    vanished without unmatching from holding the node forever."""
+    from rclpy.duration import Duration
+    deadline = time.monotonic() + timeout
+    late = []
+    for pub in list(node.publishers):
+        left = max(0.0, deadline - time.monotonic())
+        if not pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
+            late.append(pub.topic_name)
+    if late:
+        node.get_logger().warning(
+            f'not acknowledged by every subscriber within {timeout:g} s: {", ".join(late)} (a '
+            f'subscriber stalled or is gone; it may have missed the last messages)')
+    return late
+
+
+def _close(node) -> None:
+    """The node's ``close()`` (if any: it may still publish), ``flush()``, then
+    ``destroy_node()``; the context is still valid unless something else shut it down (then
+    what failed because of it is a stop, not an error)."""
+    try:
+        close = getattr(node, 'close', None)
+        if close is not None:
+            close()
+        if node.context.ok():
+            flush(node)
+    except Exception as exc:  # noqa: BLE001  (re-raised unless the context went away)
+        if not _context_gone(exc, node):
+            raise
+    finally:
+        node.destroy_node()

@@ -29,10 +29,8 @@ from __future__ import annotations
 import math
 import time
 
-import rclpy
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -43,7 +41,7 @@ from .. import conversions as conv
 from ..core.dynamics import DivergenceError, Simulator
 from ..core.params import ParameterError
 from ..ros_params import ScenarioParameters, accept_integers_for_doubles
-from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node, with_depth
+from .common import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node, spin_node, with_depth
 
 # What the node publishes every step, in this order (tests and benchmarks subscribe from here).
 TOPICS = {'/clock': Clock, '/saw/pose': PoseStamped, '/saw/twist': TwistStamped,
@@ -59,7 +57,6 @@ MAX_BATCH = 50               # steps per wake-up: bursts well below the queue de
 # /clock ticks however deep its own queue is. (Depth does not affect QoS compatibility.)
 PUBLISHER_DEPTH = 1000
 
-FLUSH_TIMEOUT = 1.0          # s to wait, at exit, for subscribers to acknowledge the last steps
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
 WARN_EVERY = 5.0             # s of wall time between "falling behind" warnings
 
@@ -248,14 +245,6 @@ class SimulatorNode(Node):
             self._last_warning = now
             self._behind_since_warning = 0
 
-    def _flush(self, timeout: float) -> None:
-        """Give reliable subscribers up to ``timeout`` s in all to acknowledge the last steps."""
-        deadline = time.monotonic() + timeout
-        for pub in self._publishers_all:
-            left = deadline - time.monotonic()
-            if left <= 0 or not pub.wait_for_all_acked(Duration(seconds=left)):
-                break
-
     def step_and_publish(self) -> None:
         """One physics step, then its six messages, all stamped (steps + 1) * dt."""
         sim = self.sim
@@ -288,24 +277,18 @@ class SimulatorNode(Node):
                                                   rates, ns))
 
     def close(self) -> None:
-        """Before exiting: let subscribers receive the last steps (bounded)."""
-        try:
-            self._flush(FLUSH_TIMEOUT)
-        except Exception:  # noqa: BLE001  (shutting down: the context may already be gone)
-            pass
+        """Say how many steps went out (every topic got each of them once; tests compare with
+        recordings). run_node then waits for subscribers to acknowledge them (common.flush)."""
+        self.get_logger().info(f'stopped after {self.steps} steps (t = '
+                               f'{self.steps * self.dt:.3f} s)')
 
 
 def spin(node: SimulatorNode) -> None:
-    """Spin until stopped or, with ``duration`` set, until the run is complete."""
+    """Spin until stopped (SIGINT, SIGTERM: between two batches of steps, never inside one) or,
+    with ``duration`` set, until the run is complete."""
     from rclpy.executors import SingleThreadedExecutor
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        while rclpy.ok() and not node.finished:
-            executor.spin_once(timeout_sec=0.1)
-    finally:
-        executor.remove_node(node)
-        executor.shutdown(timeout_sec=0)
+    spin_node(node, until=lambda: node.finished,
+              executor=SingleThreadedExecutor(context=node.context))
 
 
 OWN_PARAMETERS = (
