@@ -15,9 +15,9 @@ Every parameter is read once, at start: all are read-only (``ros2 param set`` is
 and exit code 1. The parameter services are served while playing (a thread spins the node).
 
 Each topic is offered with the QoS the bag's publishers offered (reliability, durability), the
-bytes are published as recorded. The node exits 0 once everything is played; it then waits at
-most ``ACK_TIMEOUT`` s in all for reliable subscribers to acknowledge the last messages, and
-says which topics were not acknowledged.
+bytes are published as recorded. The node exits 0 once everything is played; like every node
+it then waits at most ``common.FLUSH_TIMEOUT`` s in all for reliable subscribers to acknowledge
+the last messages, and says which topics were not acknowledged.
 """
 from __future__ import annotations
 
@@ -26,7 +26,6 @@ import threading
 import time
 
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -37,7 +36,6 @@ from saw_ros.nodes.common import NodeFailure, run_node
 from saw_ros.nodes.recorder import message_class
 
 SLEEP_MIN = 0.0005   # s: no sleep for a message due sooner than this (timing error < 0.5 ms)
-ACK_TIMEOUT = 5.0    # s, in all, for subscribers to acknowledge the last messages at the end
 MAX_CLOCK_RATE = 1e6  # Hz: one /clock a microsecond at most
 PARAMETERS = (
     ('bag', '', 'bag directory (or .mcap file) to play; required'),
@@ -154,26 +152,6 @@ class Player(Node):
             self.played += 1
         span = time.monotonic() - start_wall if start_wall is not None else 0.0
         self.get_logger().info(f'played {self.played} messages in {span:.3f} s')
-        self._wait_acked(ACK_TIMEOUT)
-
-    def _wait_acked(self, timeout: float) -> None:
-        """Give reliable subscribers ``timeout`` s in all to acknowledge the last messages
-        (a subscriber that stalled or vanished without unmatching would otherwise keep the
-        player from ever exiting); name the topics that were not acknowledged."""
-        deadline = time.monotonic() + timeout
-        pubs = dict(self.publishers_by_topic)
-        if self.clock_pub is not None:
-            pubs['/clock'] = self.clock_pub
-        late = []
-        for name, pub in pubs.items():
-            left = max(0.0, deadline - time.monotonic())
-            if not pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
-                late.append(name)
-        if late:
-            self.get_logger().warn(
-                f'not acknowledged by every subscriber within {timeout:g} s: '
-                f'{", ".join(late)} (a subscriber stalled or is gone; it may have missed the '
-                f'last messages)')
 
     def _publish_clock(self, stamp_ns: int) -> None:
         # Pre-encoded, as the simulator publishes it (1 kHz by default).
