@@ -26,7 +26,7 @@ setup(
     description='SAW wave robot between flexible surfaces: simulator, vision, comparison, bags',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [f'{name} = saw_ros.nodes.{name}:main' for name in NODES]
-        + ['saw-ros = saw_ros.cli:main'],
+        'console_scripts': [f'{name} = saw_ros.ros.nodes.{name}:main' for name in NODES]
+        + ['saw-ros = saw_ros.cli.main:main'],
     },
 )

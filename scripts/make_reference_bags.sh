@@ -42,11 +42,11 @@ record() {
   local cam=""
   if [ "$camera" = 1 ]; then
     # Texture off keeps the frames small in zstd; everything else is the camera's default.
-    python -m saw_ros.nodes.camera --ros-args -p texture:=false >"$LOGS/camera.log" 2>&1 &
+    python -m saw_ros.ros.nodes.camera --ros-args -p texture:=false >"$LOGS/camera.log" 2>&1 &
     cam=$!; PIDS+=("$cam")
     wait_log "$LOGS/camera.log" 'camera 1280x720' "$cam"
   fi
-  python -m saw_ros.nodes.recorder --ros-args -p output:="bags/$name" -p "topics:=$topics" \
+  python -m saw_ros.ros.nodes.recorder --ros-args -p output:="bags/$name" -p "topics:=$topics" \
     >"$LOGS/rec_$name.log" 2>&1 &
   local rec=$!; PIDS+=("$rec")
   wait_log "$LOGS/rec_$name.log" 'recording to' "$rec"
@@ -55,7 +55,7 @@ record() {
     wait_log "$LOGS/rec_$name.log" 'recording /saw/camera/camera_info' "$rec"
   fi
   # wait_for_subscribers 1: every simulator topic has the recorder before the first step.
-  python -m saw_ros.nodes.simulator --ros-args -p wait_for_subscribers:=1 "$@" \
+  python -m saw_ros.ros.nodes.simulator --ros-args -p wait_for_subscribers:=1 "$@" \
     >"$LOGS/simulator_$name.log" 2>&1
   if [ -n "$cam" ]; then  # the last frames are rendered once the inputs reach their time
     wait_idle "$cam"

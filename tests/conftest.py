@@ -1,15 +1,14 @@
 """Shared test set-up: every test run gets its own DDS domain on localhost only."""
 import os
-import random
 
 import pytest
 
-from saw_ros.process import isolated_ros_env, wait_for  # noqa: F401  (re-exported for tests)
+from saw_ros.graph.process import isolated_ros_env, wait_for  # noqa: F401  (re-exported for tests)
 
-# Isolate DDS for the whole run before anything imports rclpy: a random domain keeps concurrent
+# Isolate DDS for the whole run before anything imports rclpy: a reserved domain keeps concurrent
 # runs apart, LOCALHOST keeps traffic on this machine.
 if not os.environ.get('DISABLE_ROS_ISOLATION'):
-    os.environ.update(isolated_ros_env(random.randint(1, 100)))
+    os.environ.update(isolated_ros_env())
 
 
 @pytest.fixture

@@ -6,11 +6,11 @@ import os
 import numpy as np
 import pytest
 
-from saw_ros import cdr
+from saw_ros.ros import cdr
 from saw_ros.bag import BagReader
-from saw_ros.compare import RunComparator
+from saw_ros.analysis.compare import RunComparator
 from saw_ros.core import Scenario
-from saw_ros.process import ManagedProcess, node_command, wait_for
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker
 
@@ -98,7 +98,7 @@ def test_player_into_vision_node_gives_the_same_ar(offline, tmp_path, ros_contex
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from saw_ros.nodes.common import STREAM_QOS
+    from saw_ros.ros.runtime import STREAM_QOS
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     deep = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,

@@ -12,7 +12,7 @@ from mcap_ros2._dynamic import serialize_dynamic
 from saw_ros.bag import BagReader, BagWriter, qos_profile_dict
 from saw_ros.bag.reader import BagDamagedError, BagDecodeError, BagReadError, stamp
 from saw_ros.bag.schema import message_definition
-from saw_ros.cli import main
+from saw_ros.cli.main import main
 
 POSE = 'geometry_msgs/msg/PoseStamped'
 CLOCK = 'rosgraph_msgs/msg/Clock'

@@ -11,7 +11,7 @@ from mcap_ros2.decoder import DecoderFactory
 
 from saw_ros.bag import BagExistsError, BagReader, BagWriteError, BagWriter, qos_profile_dict
 from saw_ros.bag.schema import message_definition, type_hash
-from saw_ros.share import share_file
+from saw_ros.interface.share import share_file
 
 POSE = 'geometry_msgs/msg/PoseStamped'
 DELIM = '=' * 80 + '\n'

@@ -6,7 +6,7 @@ import sys
 import pytest
 
 from saw_ros.bag import BagReader
-from saw_ros.process import ManagedProcess, node_command, wait_for
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 SIM_TOPICS = ['/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
@@ -20,7 +20,7 @@ def start_recorder(tmp_path, output, **params):
 
 
 def run_loadgen(tmp_path, **params):
-    proc = ManagedProcess('loadgen', node_command('loadgen', params=params), os.environ,
+    proc = ManagedProcess('loadgen', node_command('loadgen', params=params, package='saw_ros.bench'), os.environ,
                           tmp_path / 'logs')
     assert proc.wait(60) == 0, proc.output()
     counts = {}

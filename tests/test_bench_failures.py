@@ -9,8 +9,8 @@ import pytest
 
 @pytest.mark.ros
 def test_a_hanging_simulator_is_a_failed_rung_with_its_logs_kept(tmp_path, monkeypatch):
-    from saw_ros import process
-    from saw_ros.benchmarks import simulator_node
+    from saw_ros.graph import process
+    from saw_ros.bench import simulator_node
     real = process.node_command
 
     def hanging(executable, *args, **kwargs):
@@ -35,7 +35,7 @@ def test_a_hanging_simulator_is_a_failed_rung_with_its_logs_kept(tmp_path, monke
 
 
 def test_simulator_state_from_its_log():
-    from saw_ros.benchmarks.simulator_node import simulator_state
+    from saw_ros.bench.simulator_node import simulator_state
     assert 'discovery' in simulator_state('waiting for 1 subscriber(s) on every topic')
     assert simulator_state('waiting for 1 ...\nsubscribers present: starting') == \
         'stepping, duration not reached'
@@ -45,8 +45,8 @@ def test_simulator_state_from_its_log():
 
 def test_a_failing_module_gives_null_figures_and_the_bench_goes_on(tmp_path, monkeypatch,
                                                                    capsys):
-    from saw_ros.benchmarks import core, figures
-    from saw_ros.commands import bench
+    from saw_ros.bench import core, figures
+    from saw_ros.cli.commands import bench
 
     def broken(quick=False):
         raise TimeoutError('a subprocess hung')
@@ -66,7 +66,7 @@ def test_a_failing_module_gives_null_figures_and_the_bench_goes_on(tmp_path, mon
 @pytest.mark.ros
 @pytest.mark.slow
 def test_one_real_rung_passes_through_measure(tmp_path):
-    from saw_ros.benchmarks import simulator_node
+    from saw_ros.bench import simulator_node
     result = simulator_node.measure(1.0, 1.0, tmp_path)
     assert 'hung' not in result, result
     assert result['simulator_exit'] == 0, result
@@ -82,9 +82,9 @@ def test_a_domain_another_run_publishes_in_is_left_for_another(tmp_path, monkeyp
     run in another domain."""
     import random
 
-    from saw_ros import process
-    from saw_ros.benchmarks import simulator_node
-    from saw_ros.process import ManagedProcess, isolated_ros_env, node_command, wait_for
+    from saw_ros.graph import process
+    from saw_ros.bench import simulator_node
+    from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command, wait_for
     env = isolated_ros_env()
     taken = int(env['ROS_DOMAIN_ID'])
     other = ManagedProcess('other_run', node_command('simulator', params={

@@ -1,4 +1,4 @@
-"""CDR readers and writers of saw_ros.cdr against rclpy's own serialisation."""
+"""CDR readers and writers of saw_ros.ros.cdr against rclpy's own serialisation."""
 import math
 
 import numpy as np
@@ -7,8 +7,8 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Image, JointState
 
-from saw_ros import cdr
-from saw_ros import conversions as conv
+from saw_ros.ros import cdr
+from saw_ros.ros import conversions as conv
 
 
 def _joint_state(names, positions, ns, frame=''):

@@ -1,8 +1,8 @@
 """Clean stops (issue 10): SIGINT and SIGTERM end every node with exit 0, no traceback and no
 FATAL line, every time, and a recording stopped that way is complete.
 
-Launch-free: the nodes are subprocesses (saw_ros.process) in the run's isolated DDS domain, started
-as the main job starts them (saw_ros.pipeline.run_pipeline); every wait is on a condition."""
+Launch-free: the nodes are subprocesses (saw_ros.graph.process) in the run's isolated DDS domain, started
+as the main job starts them (saw_ros.graph.pipeline.run_pipeline); every wait is on a condition."""
 import os
 import signal
 import time
@@ -12,10 +12,10 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 
 from saw_ros.bag.reader import BagReader
-from saw_ros.cdr import stamp_ns
-from saw_ros.nodes.simulator import TOPICS as SIM_TOPICS
-from saw_ros.pipeline import RECORDED_TOPICS
-from saw_ros.process import ManagedProcess, node_command, wait_for
+from saw_ros.ros.cdr import stamp_ns
+from saw_ros.ros.nodes.simulator import TOPICS as SIM_TOPICS
+from saw_ros.graph.pipeline import RECORDED_TOPICS
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 
 pytestmark = pytest.mark.ros
 

@@ -6,7 +6,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
 
-from saw_ros import conversions as conv
+from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator, link_geometry
 
 

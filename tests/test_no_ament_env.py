@@ -11,10 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from saw_ros import share
+from saw_ros.interface import share
 from saw_ros.bag import BagReader
 from saw_ros.bag import schema
-from saw_ros.process import ManagedProcess, isolated_ros_env, node_command, wait_for
+from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command, wait_for
 
 
 def without_ament(env=None):
@@ -120,8 +120,8 @@ def test_config_files_found_by_the_installed_package_without_ament_prefix_path(t
     source): config_path and the recorder's default topics find msg_config/."""
     code = textwrap.dedent('''
         import saw_ros
-        from saw_ros.config import config_path
-        from saw_ros.nodes.recorder import default_topics
+        from saw_ros.interface.config import config_path
+        from saw_ros.ros.nodes.recorder import default_topics
         print(saw_ros.__file__)
         print(config_path('record_topics.yaml'))
         print(default_topics())
@@ -153,7 +153,8 @@ def test_recorder_writes_a_full_bag_without_ament_prefix_path(tmp_path):
     assert wait_for(lambda: 'recording to' in rec.output() or rec.returncode is not None, 30), \
         rec.output()
     gen = ManagedProcess('loadgen', node_command('loadgen', params={
-        'rate': 1000.0, 'duration': 1.0, 'streams': 6, 'wait_subscribers': 1}), env,
+        'rate': 1000.0, 'duration': 1.0, 'streams': 6, 'wait_subscribers': 1},
+        package='saw_ros.bench'), env,
         tmp_path / 'logs', cwd=tmp_path)
     assert gen.wait(90) == 0, gen.output()
     published = {line.split()[1]: int(line.split()[2]) for line in gen.output().splitlines()
@@ -185,9 +186,9 @@ def test_recorder_without_definitions_refuses_before_creating_the_bag(tmp_path):
     out = tmp_path / 'bag'
     code = textwrap.dedent(f'''
         import sys
-        import saw_ros.share
-        saw_ros.share.python_locations = lambda package: []   # as if nothing were found there
-        from saw_ros.nodes.recorder import main
+        import saw_ros.interface.share
+        saw_ros.interface.share.python_locations = lambda package: []   # as if nothing were found there
+        from saw_ros.ros.nodes.recorder import main
         sys.exit(main(['recorder', '--ros-args', '-p', 'output:={out}']))
     ''')
     proc = subprocess.run([sys.executable, '-c', code], cwd=tmp_path,

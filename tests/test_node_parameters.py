@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from saw_ros.process import ManagedProcess, node_command, wait_for
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 
 pytestmark = pytest.mark.ros
 
@@ -184,7 +184,7 @@ def test_player_parameters_are_read_only_while_playing(tmp_path, ros_context):
 def test_player_end_does_not_wait_forever_for_a_stalled_subscriber(tmp_path):
     """A reliable subscriber that stops acknowledging (here: SIGSTOP) no longer keeps the
     player from exiting: it waits ACK_TIMEOUT, names the topic, exits 0."""
-    from saw_ros.nodes.common import FLUSH_TIMEOUT as ACK_TIMEOUT
+    from saw_ros.ros.runtime import FLUSH_TIMEOUT as ACK_TIMEOUT
     listener = start(tmp_path, 'comparison')          # a reliable /saw/pose subscriber
     player = None
     try:

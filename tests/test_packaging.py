@@ -16,7 +16,7 @@ from unittest import mock
 
 import pytest
 
-from saw_ros.process import isolated_ros_env
+from saw_ros.graph.process import isolated_ros_env
 
 ROOT = Path(__file__).resolve().parents[1]
 MARKER = Path('share', 'ament_index', 'resource_index', 'packages', 'saw_ros')
@@ -155,11 +155,11 @@ def test_simulator_runs_from_lib_saw_ros_with_the_installed_config(tmp_path):
 
 def test_simulator_yaml_lists_every_parameter_with_the_core_defaults():
     """msg_config/simulator.yaml = the paper's set-up = the core defaults, nothing missing or
-    unknown (regenerate it with `python -m saw_ros.nodes.simulator --write-yaml ...`)."""
+    unknown (regenerate it with `python -m saw_ros.ros.nodes.simulator --write-yaml ...`)."""
     import yaml
 
     from saw_ros.core import Scenario
-    from saw_ros.nodes.simulator import EXCLUDED, OWN_PARAMETERS
+    from saw_ros.ros.nodes.simulator import EXCLUDED, OWN_PARAMETERS
     data = yaml.safe_load((ROOT / 'msg_config' / 'simulator.yaml').read_text())
     params = data['simulator']['ros__parameters']
     flat = {}

@@ -9,8 +9,8 @@ import pytest
 import yaml
 
 from saw_ros.bag import BagReader
-from saw_ros.nodes.recorder import LossCounter
-from saw_ros.process import ManagedProcess, node_command, wait_for
+from saw_ros.ros.nodes.recorder import LossCounter
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 
 
 def test_loss_counter_counts_gaps_per_publisher():
@@ -35,7 +35,7 @@ def _record(tmp_path, rec_params, gen_params):
     rec = ManagedProcess('recorder', node_command('recorder', params=dict(
         output=str(out), **rec_params)), os.environ, tmp_path / 'logs')
     assert wait_for(lambda: 'recording to' in rec.output(), 30), rec.output()
-    gen = ManagedProcess('loadgen', node_command('loadgen', params=gen_params), os.environ,
+    gen = ManagedProcess('loadgen', node_command('loadgen', params=gen_params, package='saw_ros.bench'), os.environ,
                          tmp_path / 'logs')
     assert gen.wait(90) == 0, gen.output()
     rec.signal(signal.SIGINT)

@@ -13,15 +13,15 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from std_srvs.srv import Trigger
 
-from saw_ros import conversions as conv
+from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator
 from saw_ros.core.dynamics import GRAVITY
 from saw_ros.core.kinematics import v_theory
-from saw_ros.process import ManagedProcess, node_command, wait_for
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 
 pytestmark = pytest.mark.ros
 
-from saw_ros.nodes.simulator import TOPICS  # noqa: E402  (topic -> message class)
+from saw_ros.ros.nodes.simulator import TOPICS  # noqa: E402  (topic -> message class)
 MS = 1_000_000
 # Real time: 6000 messages/s, which one raw subscriber keeps up with on a shared 2-core machine.
 # (real_time_factor 0 outruns any Python subscriber of all six topics: see the node's docstring.)

@@ -4,9 +4,9 @@ import math
 
 import pytest
 
-from saw_ros import conversions as conv
+from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator
-from saw_ros.process import wait_for
+from saw_ros.graph.process import wait_for
 from saw_ros.vision.tracker import TrackerConfig
 
 STEADY = 2.0          # s, steady window for this short run
@@ -19,9 +19,9 @@ def nodes(ros_context, tmp_path):
     from rclpy.node import Node
     from rclpy.parameter import Parameter
 
-    from saw_ros.nodes.camera import CameraNode
-    from saw_ros.nodes.common import STREAM_QOS
-    from saw_ros.nodes.vision import VisionNode
+    from saw_ros.ros.nodes.camera import CameraNode
+    from saw_ros.ros.runtime import STREAM_QOS
+    from saw_ros.ros.nodes.vision import VisionNode
 
     video = tmp_path / 'camera.mp4'
     camera = CameraNode(context=ros_context, parameter_overrides=[
@@ -46,7 +46,7 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
     from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped
     from sensor_msgs.msg import CameraInfo, Image, JointState
 
-    from saw_ros.commands.track import track_video
+    from saw_ros.cli.commands.track import track_video
 
     camera, vision, source, executor, video, qos = nodes
     got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image')}
@@ -121,7 +121,7 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
 def test_vision_node_rejects_bad_parameters(ros_context):
     from rclpy.parameter import Parameter
 
-    from saw_ros.nodes.common import NodeFailure
-    from saw_ros.nodes.vision import VisionNode
+    from saw_ros.ros.runtime import NodeFailure
+    from saw_ros.ros.nodes.vision import VisionNode
     with pytest.raises(NodeFailure):
         VisionNode(context=ros_context, parameter_overrides=[Parameter('gate', value=-1.0)])

@@ -7,7 +7,7 @@ import pytest
 
 from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.render import PINK, Renderer, RenderOptions, RobotPose
+from saw_ros.vision.frames import PINK, Renderer, RenderOptions, RobotPose
 from saw_ros.vision.scene import HOT_PINK, ORANGE_RED, Clutter, SceneOptions
 from saw_ros.vision.tracker import detect
 
@@ -113,7 +113,7 @@ def test_vision_imports_no_rclpy():
     code = ('import sys, importlib, pkgutil, saw_ros.vision\n'
             'for m in pkgutil.iter_modules(saw_ros.vision.__path__):\n'
             '    importlib.import_module("saw_ros.vision." + m.name)\n'
-            'import saw_ros.commands.track, saw_ros.benchmarks.vision\n'
+            'import saw_ros.cli.commands.track, saw_ros.bench.vision\n'
             'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rcl")))')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          timeout=120)

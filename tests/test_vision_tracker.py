@@ -6,7 +6,7 @@ import pytest
 
 from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.render import Renderer, RenderOptions
+from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.synthetic import evaluate, simulate_run
 from saw_ros.vision.tracker import OK, Tracker, TrackerConfig, steady_speed
 

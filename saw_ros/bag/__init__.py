@@ -1,9 +1,9 @@
 """rosbag2-compatible bags (MCAP storage) without rosbag2: schemas, writer, reader.
 
-No rclpy here: the recorder and player nodes (``saw_ros/nodes``) adapt ROS to these classes.
+No rclpy here: the recorder and player nodes (``saw_ros/ros/nodes``) adapt ROS to these classes.
 What the files contain is described in ``docs/bags.md`` (and rosbag2's own layout in
 ``shared/docs/bag-format.md``).
 """
-from .reader import BagReader, BagReadError  # noqa: F401
-from .schema import message_definition, type_hash  # noqa: F401
-from .writer import BagExistsError, BagWriteError, BagWriter, qos_profile_dict  # noqa: F401
+from saw_ros.bag.reader import BagReader, BagReadError  # noqa: F401
+from saw_ros.bag.schema import message_definition, type_hash  # noqa: F401
+from saw_ros.bag.writer import BagExistsError, BagWriteError, BagWriter, qos_profile_dict  # noqa: F401

@@ -4,7 +4,7 @@ rosbag2 (``rosbag2_cpp/.../local_message_definition_source.cpp``) builds a ``ros
 the installed ``share/<pkg>/msg/<Type>.msg`` files: the root text, then every dependency once,
 depth first, in sorted order of the names found in each text, each one introduced by a line of 80
 ``=`` and ``MSG: <pkg>/<Type>``. The type hash is ``type_hashes[0]`` of the ``.json`` beside it.
-The files are looked up without ``AMENT_PREFIX_PATH`` when possible (``saw_ros.share``).
+The files are looked up without ``AMENT_PREFIX_PATH`` when possible (``saw_ros.interface.share``).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import json
 import re
 from typing import Set, Tuple
 
-from ..share import PackageNotFound, share_file
+from saw_ros.interface.share import PackageNotFound, share_file
 
 # The same pattern rosbag2 uses: the first word of a line followed by blanks is a field type.
 _FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')

@@ -39,7 +39,7 @@ from typing import Dict, List, Optional
 import yaml
 from mcap.writer import CompressionType, Writer
 
-from .schema import message_definition, type_hash
+from saw_ros.bag.schema import message_definition, type_hash
 
 # rosbag2's MCAP default (mcap::McapWriterOptions: 768 KiB chunks, zstd).
 DEFAULT_CHUNK_SIZE = 768 * 1024

@@ -19,9 +19,9 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from .contact import ContactLaw, ContactState, contact_step
-from .kinematics import TipTable, check_no_interference
-from .params import ParameterError, RobotParams, Scenario
+from saw_ros.core.contact import ContactLaw, ContactState, contact_step
+from saw_ros.core.kinematics import TipTable, check_no_interference
+from saw_ros.core.params import ParameterError, RobotParams, Scenario
 
 GRAVITY = 9.81  # m/s^2
 TWO_PI = 2.0 * math.pi

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .params import ParameterError, RobotParams
+from saw_ros.core.params import ParameterError, RobotParams
 
 
 @dataclass(frozen=True)

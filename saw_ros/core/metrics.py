@@ -17,7 +17,7 @@ from typing import Optional
 
 import numpy as np
 
-from .kinematics import v_theory
+from saw_ros.core.kinematics import v_theory
 
 STEADY_CCI = 0.02   # the paper's first convergence threshold (2 %)
 

@@ -42,9 +42,9 @@ from typing import Optional
 
 import numpy as np
 
-from .contact import hysteresis_factor
-from .dynamics import GRAVITY
-from .params import ParameterError, Scenario
+from saw_ros.core.contact import hysteresis_factor
+from saw_ros.core.dynamics import GRAVITY
+from saw_ros.core.params import ParameterError, Scenario
 
 # The two calibrated constants (see the module docstring): solved from AR 0.40 (0 deg) and
 # 0.29 (90 deg) at COF 1 with N = 4, s = 7 cm, m g = 3.07 N.

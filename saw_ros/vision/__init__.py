@@ -5,9 +5,9 @@
 (.mp4 writing and frame-by-frame reading), ``synthetic`` (rendered runs with their ground truth,
 for tests and benchmarks; the only module here that imports the simulation core).
 """
-from .camera import CameraModel
-from .render import Renderer, RenderOptions, RobotPose
-from .tracker import FrameResult, Tracker, TrackerConfig, detect
+from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.frames import Renderer, RenderOptions, RobotPose
+from saw_ros.vision.tracker import FrameResult, Tracker, TrackerConfig, detect
 
 __all__ = ['CameraModel', 'FrameResult', 'Renderer', 'RenderOptions', 'RobotPose', 'Tracker',
            'TrackerConfig', 'detect']

@@ -23,7 +23,7 @@ from typing import Iterable, Tuple
 import cv2
 import numpy as np
 
-from .camera import CameraModel
+from saw_ros.vision.camera import CameraModel
 
 # RGB
 HOT_PINK = (255, 60, 170)        # the renderer's marker colour (render.PINK is its BGR)

@@ -15,12 +15,12 @@ from typing import Callable, Iterable, Iterator, List, Optional, Tuple
 
 import numpy as np
 
-from ..core import Scenario, simulate
-from .camera import CameraModel
-from .render import Renderer, RenderOptions, RobotPose, pose_interpolator
-from .scene import (HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, Clutter, SceneOptions)
-from .tracker import FrameResult, Tracker, TrackerConfig
-from .video import VideoWriter, read_frames
+from saw_ros.core import Scenario, simulate
+from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.frames import Renderer, RenderOptions, RobotPose, pose_interpolator
+from saw_ros.vision.scene import (HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, Clutter, SceneOptions)
+from saw_ros.vision.tracker import FrameResult, Tracker, TrackerConfig
+from saw_ros.vision.video import VideoWriter, read_frames
 
 
 @dataclass

@@ -73,7 +73,7 @@ from typing import Deque, Dict, List, Optional, Tuple
 import cv2
 import numpy as np
 
-from .camera import CameraModel
+from saw_ros.vision.camera import CameraModel
 
 OK = 'ok'
 AMBIGUOUS = 'ambiguous'

@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from saw_ros.campaign import linear_fit, summarise, run_campaign
+from saw_ros.analysis.campaign import linear_fit, summarise, run_campaign
 
 
 def test_linear_fit_recovers_a_line_and_its_r2():
@@ -28,7 +28,7 @@ def test_campaign_tracks_every_condition_and_speed_falls_with_slope_rises_with_v
 
 
 def test_campaign_command_writes_tables_and_figures(tmp_path):
-    r = subprocess.run([sys.executable, '-m', 'saw_ros.cli', 'campaign', '--slopes', '0,20',
+    r = subprocess.run([sys.executable, '-m', 'saw_ros.cli.main', 'campaign', '--slopes', '0,20',
                         '--voltages', '6', '--out', str(tmp_path), '--quiet'],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -41,6 +41,6 @@ def test_campaign_command_writes_tables_and_figures(tmp_path):
     assert rows[1]['reference_speed'] == '0.068'
     for name in ('figure17_speed.png', 'figure18_ar.png'):
         assert (tmp_path / name).stat().st_size > 10_000
-    bad = subprocess.run([sys.executable, '-m', 'saw_ros.cli', 'campaign', '--voltages', 'x'],
+    bad = subprocess.run([sys.executable, '-m', 'saw_ros.cli.main', 'campaign', '--voltages', 'x'],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and 'Traceback' not in bad.stderr

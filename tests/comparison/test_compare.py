@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.compare import RunComparator, find_reference, load_reference, reference_error
-from saw_ros.config import config_path
+from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
+from saw_ros.interface.config import config_path
 from saw_ros.core import RobotParams, Scenario, simulate
 
 ROBOT = RobotParams()

@@ -12,8 +12,8 @@ from rclpy.node import Node
 
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.metrics import analyse
-from saw_ros.nodes.common import LATCHED_QOS, STREAM_QOS
-from saw_ros.process import ManagedProcess, node_command, wait_for
+from saw_ros.ros.runtime import LATCHED_QOS, STREAM_QOS
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 
 pytestmark = pytest.mark.ros
 

@@ -7,8 +7,8 @@ from rclpy.serialization import deserialize_message
 from diagnostic_msgs.msg import DiagnosticArray
 
 from saw_ros.bag.reader import BagReader
-from saw_ros.campaign import run_campaign
-from saw_ros.pipeline import run_pipeline
+from saw_ros.analysis.campaign import run_campaign
+from saw_ros.graph.pipeline import run_pipeline
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

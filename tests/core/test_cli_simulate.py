@@ -4,7 +4,7 @@ import sys
 
 
 def saw_ros(*args, timeout=120):
-    return subprocess.run([sys.executable, '-m', 'saw_ros.cli', *args], capture_output=True,
+    return subprocess.run([sys.executable, '-m', 'saw_ros.cli.main', *args], capture_output=True,
                           text=True, timeout=timeout)
 
 

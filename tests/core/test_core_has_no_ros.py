@@ -7,7 +7,7 @@ import sys, importlib, pkgutil
 import saw_ros.core
 for m in pkgutil.iter_modules(saw_ros.core.__path__):
     importlib.import_module('saw_ros.core.' + m.name)
-import saw_ros.config, saw_ros.process
+import saw_ros.interface.config, saw_ros.graph.process
 bad = sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py', 'rcl'))
 print(bad)
 sys.exit(1 if bad else 0)

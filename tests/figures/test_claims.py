@@ -1,10 +1,10 @@
 """The paper's claims that our model holds, computed by the same code as the fidelity report
-(saw_ros/figures/claims.py) on the quick grids. A change that breaks one of them fails here; a
+(saw_ros/analysis/figures/claims.py) on the quick grids. A change that breaks one of them fails here; a
 claim that starts to hold should move from NOT_HELD to HELD (and the report be regenerated)."""
 import pytest
 
-from saw_ros.figures import claims as claims_mod
-from saw_ros.figures import sweeps
+from saw_ros.analysis.figures import claims as claims_mod
+from saw_ros.analysis.figures import sweeps
 
 HELD = {'S1', 'S2', 'S3', 'S4', 'S5', 'C1', 'C3', 'A1', 'G2', 'G3', 'G4', 'G5', 'G7', 'K1', 'K3',
         'K4', 'K5', 'F1', 'F2', 'F3', 'W1', 'W2', 'W3', 'W4', 'W5', 'W6', 'W7', 'W8'}

@@ -3,7 +3,7 @@ import csv
 
 import pytest
 
-from saw_ros.cli import main
+from saw_ros.cli.main import main
 
 
 def test_figures_quick_subset_writes_png_csv_and_report(tmp_path, capsys):
@@ -47,7 +47,7 @@ def test_statics_custom_case_and_errors(capsys):
 
 @pytest.mark.slow
 def test_benchmark_reports_figures_s():
-    from saw_ros.benchmarks import figures
+    from saw_ros.bench import figures
     assert figures.KEYS == ['figures_s']
     result = figures.run(quick=True)
     assert set(result) == {'figures_s'} and 0 < result['figures_s'] < 60

@@ -1,0 +1,1 @@
+"""Analysis (pure): simulation against tracking, the campaign, the paper's figures."""

@@ -1,0 +1,201 @@
+"""Simulation against tracking (paper Section 6.4.2): AR of both, and their relative error.
+
+Pure numpy, no rclpy: the comparison node, the campaign and the tests share it.
+
+Steady state is detected on the simulator's ground-truth forward velocity with the core's CCI
+(under 2 % from then on, for at least one cycle). The velocity is a 10 ms centred difference of the
+position resampled on a regular grid: a subscriber that lost a few of the 1 kHz samples then
+still sees the same signal, where differences across a gap would average the ~25 Hz ripple and
+keep the CCI above 2 %. Both mean speeds are then measured over the same
+window, from the steady-state start over a whole number of wave cycles (the ripple cancels), the
+tracked one by interpolating its 60 Hz positions at the window's ends.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import List, Optional
+
+import numpy as np
+
+from saw_ros.core.kinematics import v_theory
+from saw_ros.core.metrics import STEADY_CCI, steady_state_start
+from saw_ros.core.params import RobotParams
+
+
+class _Series:
+    """A growing (t, value...) record, amortised O(1) appends."""
+
+    def __init__(self, columns: int):
+        self._data = np.empty((1024, columns))
+        self.size = 0
+
+    def append(self, *row: float) -> None:
+        if self.size == len(self._data):
+            self._data = np.concatenate([self._data, np.empty_like(self._data)])
+        self._data[self.size] = row
+        self.size += 1
+
+    def column(self, i: int) -> np.ndarray:
+        return self._data[:self.size, i]
+
+    def clear(self) -> None:
+        self.size = 0
+
+
+@dataclass
+class Comparison:
+    """One report. While not steady only ``status`` and the counts mean something."""
+
+    status: str                       # 'waiting for data' | 'not steady yet' | 'steady'
+    frequency: float = float('nan')   # Hz
+    v_theory: float = float('nan')    # m/s
+    steady_from: float = float('nan')  # s of simulated time
+    window_s: float = float('nan')    # length of the measuring window, s
+    v_sim: float = float('nan')       # m/s
+    v_tracked: float = float('nan')   # m/s
+    ar_sim: float = float('nan')
+    ar_tracked: float = float('nan')
+    relative_error: float = float('nan')   # |AR_tracked - AR_sim| / AR_sim
+    truth_samples: int = 0
+    tracked_samples: int = 0
+
+    @property
+    def steady(self) -> bool:
+        return self.status == 'steady'
+
+    def as_dict(self):
+        return asdict(self)
+
+
+VELOCITY_WINDOW = 0.010   # s
+
+
+def velocity_on_grid(t: np.ndarray, x: np.ndarray, window: float = VELOCITY_WINDOW):
+    """(grid, v): x resampled every median sample interval, v its centred difference over
+    ``window``."""
+    step = float(np.median(np.diff(t)))
+    grid = np.arange(t[0] + window / 2, t[-1] - window / 2 + 1e-12, step)
+    v = (np.interp(grid + window / 2, t, x) - np.interp(grid - window / 2, t, x)) / window
+    return grid, v
+
+
+class RunComparator:
+    """Collects ground truth (x, vx at the simulator's rate) and tracked positions (x at the
+    camera's rate), both against simulated time, and compares them on demand."""
+
+    def __init__(self, robot: RobotParams, frequency: float = float('nan'),
+                 threshold: float = STEADY_CCI, min_cycles: float = 1.0):
+        self.robot = robot
+        self.frequency = frequency
+        self.threshold = threshold
+        self.min_cycles = min_cycles
+        self.truth = _Series(2)
+        self.tracked = _Series(2)
+
+    def reset(self) -> None:
+        self.truth.clear()
+        self.tracked.clear()
+
+    def add_truth(self, t: float, x: float) -> None:
+        if self.truth.size and t <= self.truth.column(0)[-1]:
+            if t < self.truth.column(0)[-1]:      # time went back: a reset of the simulation
+                self.reset()
+            else:
+                return
+        self.truth.append(t, x)
+
+    def add_tracked(self, t: float, x: float) -> None:
+        if not math.isfinite(x):
+            return                                 # a frame without a position: skip it
+        if self.tracked.size and t <= self.tracked.column(0)[-1]:
+            if t < self.tracked.column(0)[-1]:
+                self.tracked.clear()
+            return
+        self.tracked.append(t, x)
+
+    def result(self) -> Comparison:
+        n_truth, n_tracked = self.truth.size, self.tracked.size
+        counts = dict(truth_samples=n_truth, tracked_samples=n_tracked)
+        f = self.frequency
+        if not (f > 0) or n_truth < 10:
+            return Comparison('waiting for data', frequency=f, **counts)
+        t, x = self.truth.column(0), self.truth.column(1)
+        start = steady_state_start(*velocity_on_grid(t, x), f, self.threshold, self.min_cycles)
+        vth = v_theory(self.robot, f)
+        if start is None:
+            return Comparison('not steady yet', frequency=f, v_theory=vth, **counts)
+        tt, xt = self.tracked.column(0), self.tracked.column(1)
+        end = min(t[-1], tt[-1]) if n_tracked >= 2 else start
+        cycles = math.floor((end - start) * f + 1e-9)
+        if cycles < 1 or tt[0] > start:
+            return Comparison('not steady yet', frequency=f, v_theory=vth, steady_from=start,
+                              **counts)
+        end = start + cycles / f
+        v_sim = float(np.diff(np.interp([start, end], t, x))[0] / (end - start))
+        v_tracked = float(np.diff(np.interp([start, end], tt, xt))[0] / (end - start))
+        ar_sim, ar_tracked = v_sim / vth, v_tracked / vth
+        return Comparison('steady', f, vth, start, end - start, v_sim, v_tracked, ar_sim,
+                          ar_tracked, abs(ar_tracked - ar_sim) / abs(ar_sim), **counts)
+
+
+# -- measured reference data ------------------------------------------------------------------
+@dataclass
+class ReferencePoint:
+    """A measured result: slope (deg) and voltage (V) with a speed (m/s) and/or an AR."""
+
+    slope_deg: float
+    voltage: float
+    speed: Optional[float]
+    advance_ratio: Optional[float]
+    source: str
+
+
+def load_reference(path: Path) -> List[ReferencePoint]:
+    """CSV with columns slope_deg, voltage_V, and speed_cm_s and/or advance_ratio (either may be
+    empty), plus an optional source; lines starting with # are comments."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f'reference file {path} does not exist')
+    with open(path, newline='') as f:
+        rows = [line for line in f if line.strip() and not line.lstrip().startswith('#')]
+    reader = csv.DictReader(rows)
+    needed = {'slope_deg', 'voltage_V'}
+    if not reader.fieldnames or not needed <= set(reader.fieldnames) or not (
+            {'speed_cm_s', 'advance_ratio'} & set(reader.fieldnames)):
+        raise ValueError(f'{path}: needs columns slope_deg, voltage_V and speed_cm_s and/or '
+                         f'advance_ratio; found {reader.fieldnames}')
+
+    def number(text):
+        text = (text or '').strip()
+        return float(text) if text else None
+
+    points = []
+    for i, row in enumerate(reader, start=2):
+        try:
+            speed = number(row.get('speed_cm_s'))
+            ar = number(row.get('advance_ratio'))
+            if speed is None and ar is None:
+                raise ValueError('it has neither speed_cm_s nor advance_ratio')
+            points.append(ReferencePoint(float(row['slope_deg']), float(row['voltage_V']),
+                                         None if speed is None else speed / 100.0, ar,
+                                         (row.get('source') or '').strip()))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f'{path}: row {i} is not valid: {exc}') from None
+    return points
+
+
+def find_reference(points: List[ReferencePoint], slope_deg: float,
+                   voltage: float) -> Optional[ReferencePoint]:
+    for p in points:
+        if abs(p.slope_deg - slope_deg) < 0.5 and abs(p.voltage - voltage) < 0.05:
+            return p
+    return None
+
+
+def reference_error(point: ReferencePoint, v_sim: float, vth: float) -> float:
+    """Relative error of the simulation against a measurement, on AR (or speed: the same)."""
+    measured_ar = point.advance_ratio if point.advance_ratio is not None else point.speed / vth
+    return abs(v_sim / vth - measured_ar) / abs(measured_ar)

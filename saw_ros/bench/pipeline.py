@@ -1,0 +1,293 @@
+"""Full-graph throughput: the highest real-time factor at which simulator, camera, vision,
+comparison and recorder (five processes, ``saw_ros.graph.pipeline.run_pipeline``) lose no message.
+
+Each rung of a ladder of real-time factors runs the real graph for ``DURATION`` s of simulated
+time (the default scenario, video on, the recorder on ``pipeline.RECORDED_TOPICS``: every
+topic but the raw frames, as the main job runs it) and checks the artefacts.
+A rung is sustained when ALL of these hold (N = duration / dt steps, F = 60 x duration frames):
+
+- every process exited 0 and the simulator never reported falling behind real time;
+- the bag holds, for each 1 kHz topic (/clock and the five /saw streams), exactly N messages
+  stamped 1..N ms, consecutive (no gap, no repeat);
+- the bag holds F images and F camera infos, frame k (k = 1..F) stamped k/60 s, in order;
+- /saw/tracking/status holds F messages (one per frame), the last one counts F frames (the
+  tracker got every image) and /saw/tracking/pose holds exactly one per 'ok' frame (that
+  status's ok_frames), each stamped as a frame;
+- the camera received all N poses and N joint states (its log's final counts);
+- the comparison's truth_samples == N, tracked_samples == the ok frames, and it reached
+  steady state;
+- the simulated time advanced at least 97 % as fast as asked (first to last /clock receive time
+  in the bag) and the last frame's tracking status was received at most ``MAX_LAG`` s of wall
+  time after the simulator's last step (camera and tracker kept up with real time, not just
+  finished).
+
+``pipeline_max_realtime_factor`` is the highest factor of the ladder sustained (the ladder
+starts at 1.0 and climbs until a rung fails; when 1.0 fails it steps down instead; 0 if none),
+``pipeline_lost_messages`` the messages missing at that factor (0 by definition, or at the lowest
+rung tried when none is sustained), ``pipeline_cpu_share`` each node's CPU (fraction of one core)
+while the simulator stepped at real-time factor 1.0. Two shared cores: figures are noisy.
+Each rung's folder (node logs, comparison.json; the bag and video only when the rung failed) is
+kept in ``log_dir('pipeline')/rtf_<factor>/``; a graph that does not finish in time, or
+artefacts that cannot be read, make a failed rung, never a crashed bench.
+
+    python -m saw_ros.bench.pipeline --rtf 1.0 [--duration 6] [--keep DIR]   # one rung
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Dict, List, Optional
+
+KEYS = ('pipeline_max_realtime_factor', 'pipeline_lost_messages', 'pipeline_cpu_share')
+DURATION = 6.0          # s of simulated time per rung (steady state is reached near 2-3 s)
+QUICK_DURATION = 5.0
+UP = (1.0, 1.25, 1.5, 2.0)
+DOWN = (0.9, 0.75, 0.5, 0.25)
+FPS = 60.0
+MAX_LAG = 1.0           # s of wall time the last tracking status may come after the last step
+NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder')
+
+
+# -- CPU of the node processes --------------------------------------------------------------
+def _proc_table() -> Dict[int, tuple]:
+    """pid -> (ppid, cpu seconds, cmdline) of every process we can read."""
+    tck = os.sysconf('SC_CLK_TCK')
+    table = {}
+    for entry in os.listdir('/proc'):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f'/proc/{entry}/stat') as f:
+                fields = f.read().rsplit(')', 1)[1].split()
+            with open(f'/proc/{entry}/cmdline', 'rb') as f:
+                cmd = f.read().replace(b'\0', b' ').decode(errors='replace')
+        except OSError:
+            continue
+        table[int(entry)] = (int(fields[1]), (int(fields[11]) + int(fields[12])) / tck, cmd)
+    return table
+
+
+class CpuSampler:
+    """Samples the CPU seconds of every descendant of this process, per node name."""
+
+    def __init__(self):
+        self.samples: List[tuple] = []        # (epoch s, {node: cpu s})
+        self.root = os.getpid()
+
+    def __call__(self) -> None:
+        table = _proc_table()
+        per_node: Dict[str, float] = {}
+        for pid, (_ppid, cpu, cmd) in table.items():
+            node = next((n for n in NODES if f'saw_ros.ros.nodes.{n}' in cmd), None)
+            if node is None:
+                continue
+            up, seen = pid, 0
+            while up in table and up != self.root and seen < 20:     # a descendant of ours?
+                up, seen = table[up][0], seen + 1
+            if up == self.root:
+                per_node[node] = per_node.get(node, 0.0) + cpu
+        self.samples.append((time.time(), per_node))
+
+    def share(self, start: float, end: float) -> Dict[str, float]:
+        """CPU fraction of one core of each node between two epoch times."""
+        out = {}
+        for node in NODES:
+            pts = [(t, s[node]) for t, s in self.samples if node in s]
+            if len(pts) < 2 or end <= start:
+                continue
+
+            def at(t):
+                for (t0, c0), (t1, c1) in zip(pts, pts[1:]):
+                    if t0 <= t <= t1:
+                        return c0 + (c1 - c0) * (t - t0) / (t1 - t0) if t1 > t0 else c1
+                return pts[0][1] if t < pts[0][0] else pts[-1][1]
+            out[node] = round((at(end) - at(start)) / (end - start), 3)
+        return out
+
+
+# -- checking the artefacts -----------------------------------------------------------------
+def _missing(stamps: List[int], expected: List[int]) -> int:
+    """Messages missing or wrong: expected - matched in order, plus any extras."""
+    if stamps == expected:
+        return 0
+    matched = len(set(stamps) & set(expected))
+    return (len(expected) - matched) + (len(stamps) - matched)
+
+
+def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
+    """The loss figures of one run (see the module docstring)."""
+    from saw_ros.bag import BagReader
+    from saw_ros.ros.cdr import stamp_ns
+    from saw_ros.ros.nodes.simulator import TOPICS
+    streams = tuple(TOPICS)             # /clock and the five /saw streams
+    n = int(round(duration / dt))
+    frames = int(round(duration * FPS))
+    step_ns = int(round(dt * 1e9))
+    frame_stamps = [int(round(k * 1e9 / FPS)) for k in range(1, frames + 1)]
+    problems: List[str] = []
+    problems_note = ''
+    lost: Dict[str, int] = {}
+    stamps: Dict[str, List[int]] = {}
+    log_times: Dict[str, List[int]] = {}
+    ok_frames = None
+    vision_frames = 0
+    reader = BagReader(str(run.bag_dir))
+    tracking = ('/saw/tracking/status', '/saw/tracking/pose')
+    for m in reader.messages(streams + ('/saw/camera/image_raw', '/saw/camera/camera_info')
+                             + tracking):
+        stamps.setdefault(m.topic, []).append(stamp_ns(m.data))
+        log_times.setdefault(m.topic, []).append(m.log_time)
+    for _m, msg in reader.decoded_messages(['/saw/tracking/status']):
+        values = {kv.key: kv.value for kv in msg.status[0].values}
+        ok_frames = int(values.get('ok_frames', 0))
+        vision_frames = int(values.get('frames', 0))
+    for topic in streams:
+        lost[topic] = _missing(stamps.get(topic, []),
+                               [k * step_ns for k in range(1, n + 1)])
+    recorded = set(reader.topics())
+    for topic in ('/saw/camera/image_raw', '/saw/camera/camera_info', '/saw/tracking/status'):
+        if topic == '/saw/camera/image_raw' and topic not in recorded:
+            problems_note = 'images not recorded (the camera info and the tracker\'s status ' \
+                            'count the frames)'
+            continue
+        lost[topic] = _missing(stamps.get(topic, []), frame_stamps)
+    pose = stamps.get('/saw/tracking/pose', [])
+    if ok_frames is None:
+        problems.append('no tracking status in the bag')
+        ok_frames = 0
+    lost['vision frames'] = frames - vision_frames      # images the tracker never got
+    lost['/saw/tracking/pose'] = abs(ok_frames - len(pose)) + len(set(pose) - set(frame_stamps))
+    c = run.comparison
+    lost['comparison truth'] = n - int(c.get('truth_samples', 0) or 0)
+    lost['comparison tracked'] = abs(ok_frames - int(c.get('tracked_samples', 0) or 0))
+    if c.get('status') != 'steady':
+        problems.append(f"comparison: {c.get('status', 'no result')}")
+    camera_log = run.logs['camera'].read_text(errors='replace') if 'camera' in run.logs else ''
+    counts = [line for line in camera_log.splitlines() if 'inputs received' in line]
+    if counts:
+        got = dict(part.split('=') for part in
+                   counts[-1].split('inputs received:')[1].split(';')[0].split())
+        lost['camera inputs'] = 2 * n - int(got.get('poses', 0)) - int(got.get('joint_states', 0))
+    else:
+        problems.append('camera did not report its input counts')
+    sim_log = run.logs['simulator'].read_text(errors='replace')
+    if 'falling behind' in sim_log:
+        problems.append(f"simulator fell behind real time ({sim_log.count('falling behind')} "
+                        'warnings)')
+    failed = {k: v for k, v in run.exit_codes.items() if v != 0}
+    if failed:
+        problems.append(f'exit codes {failed}')
+    clock = log_times.get('/clock', [])
+    achieved = (n - 1) * dt / ((clock[-1] - clock[0]) * 1e-9) if len(clock) > 1 and \
+        clock[-1] > clock[0] else 0.0
+    if achieved < 0.97 * rtf:
+        problems.append(f'simulated time ran at {achieved:.3f} x real time')
+    # The end of the camera -> tracker chain (the recorder's own lag on the 2.7 MB images, up
+    # to 2.4 s at rtf 0.5, loses nothing and is not counted).
+    tracked = log_times.get('/saw/tracking/status', [])
+    lag = (tracked[-1] - clock[-1]) * 1e-9 if tracked and clock else float('inf')
+    if lag > MAX_LAG:
+        problems.append(f'last tracking status {lag:.2f} s after the last step')
+    total = sum(lost.values())
+    return {'rtf': rtf, 'lost': total, 'lost_by_topic': {k: v for k, v in lost.items() if v},
+            'achieved_rtf': round(achieved, 3), 'tracking_lag_s': round(lag, 3),
+            'ok_frames': ok_frames, 'problems': problems,
+            **({'note': problems_note} if problems_note else {}),
+            'sustained': total == 0 and not problems,
+            'window': (clock[0] * 1e-9, clock[-1] * 1e-9) if len(clock) > 1 else None,
+            'ar_sim': c.get('ar_sim'), 'ar_tracked': c.get('ar_tracked')}
+
+
+def measure(rtf: float, duration: float, work: Path, record_topics: Optional[List[str]] = None,
+            ) -> dict:
+    """One rung: the whole graph at ``rtf``; the loss figures and each node's CPU share."""
+    from saw_ros.interface.config import config_path
+    from saw_ros.graph.pipeline import PipelineError, run_pipeline
+    out = work / f'rtf_{rtf:g}'
+    sampler = CpuSampler()
+    start = time.monotonic()
+    try:
+        run = run_pipeline(out, duration, rtf, bag_dir=out / 'bag', progress=sampler,
+                           timeout=30.0 + 4.0 * duration / rtf, record_topics=record_topics,
+                           reference_file=config_path('reference_paper.csv'))
+    except PipelineError as exc:
+        return {'rtf': rtf, 'lost': None, 'sustained': False, 'problems': [str(exc)[:300]],
+                'wall_s': round(time.monotonic() - start, 1), 'logs': str(out / 'logs')}
+    try:
+        result = check(run, duration, rtf)
+    except Exception as exc:  # noqa: BLE001  (a bag or log the run left unreadable)
+        return {'rtf': rtf, 'lost': None, 'sustained': False, 'logs': str(out / 'logs'),
+                'problems': [f'checking the run failed: {type(exc).__name__}: {exc}'[:300]],
+                'wall_s': round(run.wall_s, 1)}
+    window = result.pop('window')
+    if window is not None:
+        result['cpu_share'] = sampler.share(*window)
+        result['cpu_total'] = round(sum(result['cpu_share'].values()), 2)
+    result['wall_s'] = round(run.wall_s, 1)
+    return result
+
+
+def run(quick: bool = False) -> dict:
+    from saw_ros.bench import log_dir
+    duration = QUICK_DURATION if quick else DURATION
+    best, lost_best, cpu_at_1, lowest = 0.0, None, None, None
+    work = log_dir('pipeline')
+
+    def rung(rtf):
+        shutil.rmtree(work / f'rtf_{rtf:g}', ignore_errors=True)   # a reused --logs folder
+        result = measure(rtf, duration, work)
+        if result['sustained']:     # keep the logs; the bag and video only of failures
+            shutil.rmtree(work / f'rtf_{rtf:g}' / 'bag', ignore_errors=True)
+            (work / f'rtf_{rtf:g}' / 'camera.mp4').unlink(missing_ok=True)
+        print(f'bench pipeline: {json.dumps(result)}', file=sys.stderr, flush=True)
+        return result
+    first = rung(1.0)
+    cpu_at_1 = first.get('cpu_share')
+    if first['sustained']:
+        best, lost_best = 1.0, 0
+        for rtf in UP[1:]:
+            if not rung(rtf)['sustained']:
+                break
+            best = rtf
+    else:
+        lowest = first
+        for rtf in DOWN:
+            result = rung(rtf)
+            lowest = result
+            if result['sustained']:
+                best, lost_best = rtf, 0
+                break
+        if best == 0.0:
+            lost_best = lowest.get('lost')
+    return {'pipeline_max_realtime_factor': best, 'pipeline_lost_messages': lost_best,
+            'pipeline_cpu_share': cpu_at_1}
+
+
+def main(argv: List[str]) -> int:
+    import argparse
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument('--rtf', type=float, default=None, help='one rung only')
+    p.add_argument('--duration', type=float, default=DURATION)
+    p.add_argument('--keep', type=Path, default=None,
+                   help='the runs go in this folder (default: the bench log folder it prints)')
+    p.add_argument('--topics', default='', help='recorder topics, comma-separated '
+                                                '(default: all)')
+    p.add_argument('--quick', action='store_true')
+    a = p.parse_args(argv)
+    if a.rtf is None:
+        print(json.dumps(run(a.quick)))
+        return 0
+    topics = [t for t in a.topics.split(',') if t] or None
+    if a.keep is not None:
+        a.keep.mkdir(parents=True, exist_ok=True)
+    from saw_ros.bench import log_dir
+    print(json.dumps(measure(a.rtf, a.duration, a.keep or log_dir('pipeline'), topics)))
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main(sys.argv[1:]))

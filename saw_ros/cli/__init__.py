@@ -1,0 +1,1 @@
+"""The command line ``saw-ros`` (``main``) and its subcommands (``commands``)."""

@@ -1,0 +1,119 @@
+"""Inspect and record bags (rosbag2 directories with MCAP storage).
+
+  saw-ros bag info BAG        what ``ros2 bag info`` shows: files, size, duration, start/end,
+                              messages, and per topic type, count, rate and serialisation;
+                              an unfinished file (recorder killed) is read up to its last
+                              complete chunk (exit 0, "State: unfinished"); damaged bytes (a
+                              chunk failing its CRC...) are an error (exit 1) naming each
+                              damaged chunk, unless --salvage: then the rest is listed (exit 0)
+  saw-ros bag record [...]    run the recorder node until Ctrl-C (same as
+                              ``ros2 run saw_ros recorder``; see docs/bags.md)
+  saw-ros bag play BAG [...]  run the player node on BAG
+"""
+from __future__ import annotations
+
+import datetime
+import os
+import subprocess
+import sys
+from saw_ros.cli.errors import UserError
+
+HELP = 'bag info / record / play (rosbag2-compatible MCAP bags)'
+
+
+def add_arguments(p):
+    sub = p.add_subparsers(dest='bag_command', metavar='ACTION', required=True)
+    info = sub.add_parser('info', help='summarise a bag like ros2 bag info')
+    info.add_argument('bag', help='bag directory (or .mcap file)')
+    info.add_argument('--salvage', action='store_true',
+                      help='read around damaged chunks and list what was skipped (exit 0)')
+    rec = sub.add_parser('record', help='record topics until Ctrl-C')
+    rec.add_argument('topics', nargs='*', help='topics (default: msg_config/record_topics.yaml)')
+    rec.add_argument('-o', '--output', default='', help='bag directory (must not exist)')
+    rec.add_argument('--label', default='default', help='what, for the default directory name')
+    play = sub.add_parser('play', help='play a bag onto its topics, with /clock')
+    play.add_argument('bag')
+    play.add_argument('-r', '--rate', type=float, default=1.0, help='speed factor')
+
+
+def _stamp(ns) -> str:
+    if ns is None:
+        return 'n/a'
+    when = datetime.datetime.fromtimestamp(ns / 1e9)
+    return (f'{when:%b %d %Y %H:%M:%S}.{ns % 1_000_000_000:09d} '
+            f'({ns // 1_000_000_000}.{ns % 1_000_000_000:09d})')
+
+
+def _size(n: int) -> str:
+    for unit in ('B', 'KiB', 'MiB', 'GiB'):
+        if n < 1024 or unit == 'GiB':
+            return f'{n:.1f} {unit}' if unit != 'B' else f'{n} B'
+        n /= 1024
+    return str(n)
+
+
+def format_info(info: dict) -> str:
+    lines = [f'Files:             {", ".join(info["files"])}',
+             f'Bag size:          {_size(info["size"])}',
+             f'Storage id:        {info["storage"]}',
+             f'Duration:          {info["duration"] / 1e9:.9f}s',
+             f'Start:             {_stamp(info["start"])}',
+             f'End:               {_stamp(info["end"])}',
+             f'Messages:          {info["messages"]}']
+    if info.get('damage'):
+        total = info.get('expected_messages')
+        of = f' of {total}' if total is not None else ''
+        lines.append(f'State:             DAMAGED, salvaged: {info["messages"]}{of} messages read, '
+                     f'{len(info["damage"])} damaged place(s) skipped')
+        lines += [f'Damaged:           {d.describe()}' for d in info['damage']]
+    if not info['complete']:
+        cut = info.get('unread_bytes', 0)
+        lines.append('State:             unfinished file (recorder killed?): read up to its last '
+                     'complete record' + (f'; the last {cut} bytes (an incomplete record) not read'
+                                          if cut else ''))
+    if not info['has_metadata_yaml']:
+        lines.append('metadata.yaml:     missing (read from the MCAP file)')
+    topics = sorted(info['topics'].values(), key=lambda t: t.name)
+    label = 'Topic information: '
+    for t in topics:
+        lines.append(f'{label}Topic: {t.name} | Type: {t.type} | Count: {t.count} | '
+                     f'Rate: {t.rate:.1f} Hz | Serialization Format: {t.serialization_format}')
+        label = ' ' * len(label)
+    return '\n'.join(lines)
+
+
+def _node(name, params):
+    from saw_ros.graph.process import node_command
+    argv = node_command(name, params=params)
+    try:
+        return subprocess.call(argv)
+    except KeyboardInterrupt:
+        return 0
+
+
+def run(args):
+    if args.bag_command == 'info':
+        from saw_ros.bag.reader import BagDamagedError, BagReader, BagReadError
+        try:
+            print(format_info(BagReader(args.bag, salvage=args.salvage).info()))
+        except BagDamagedError as exc:
+            print(f'saw-ros bag: error: {exc}', file=sys.stderr)
+            return 1
+        except BagReadError as exc:
+            raise UserError(str(exc)) from None
+        return 0
+    if args.bag_command == 'record':
+        params = {'label': args.label}
+        if args.output:
+            if os.path.lexists(args.output):
+                raise UserError(f'{args.output} exists already (a recording is never overwritten)')
+            params['output'] = args.output
+        if args.topics:
+            params['topics'] = '[' + ','.join(args.topics) + ']'
+        return _node('recorder', params)
+    if args.bag_command == 'play':
+        if not os.path.exists(args.bag):
+            raise UserError(f'no bag at {args.bag}')
+        return _node('player', {'bag': os.path.abspath(args.bag), 'rate': float(args.rate)})
+    print(f'unknown action {args.bag_command}', file=sys.stderr)
+    return 2

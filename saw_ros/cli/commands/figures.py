@@ -1,0 +1,54 @@
+"""Regenerate the paper's figures from our model and hold it against the paper's claims.
+
+Writes one PNG and one CSV per figure into OUT/figures/ and the fidelity report OUT/fidelity.md
+(the paper's value, ours, the tolerance and the verdict for every claim). The committed copy
+lives in the repository's docs/: run `saw-ros figures` from the repository root to refresh it.
+
+figures: 4 (statics), 7 and 8 (time series, CCI), 9 (gap), 10 (stiffness), 11 (COF),
+20 and 21 (wave against worm).
+
+examples:
+  saw-ros figures                          # everything into ./docs
+  saw-ros figures --out /tmp/repro --quick # coarse grids, a few seconds
+  saw-ros figures --only 9,10 --out /tmp/repro
+"""
+import sys
+from pathlib import Path
+from saw_ros.cli.errors import UserError
+
+HELP = 'regenerate the paper\'s figures (PNG + CSV) and the fidelity report'
+
+
+def add_arguments(p):
+    p.add_argument('--out', type=Path, default=Path('docs'),
+                   help='output directory: OUT/figures/*.png|csv and OUT/fidelity.md '
+                        '(default: ./docs)')
+    p.add_argument('--only', default='', help='comma-separated figure numbers '
+                   '(4, 7, 8, 9, 10, 11, 20, 21); the report then covers their claims only')
+    p.add_argument('--quick', action='store_true', help='coarse grids and 3 s runs')
+    p.add_argument('--quiet', action='store_true', help='no progress bar, no claim table')
+
+
+def run(args):
+    from saw_ros.analysis.figures import FIGURES, reproduce
+    wanted = [w.strip() for w in args.only.split(',') if w.strip()] or list(FIGURES)
+    unknown = [w for w in wanted if w not in FIGURES]
+    if unknown:
+        raise UserError(f'unknown figure(s) {", ".join(unknown)}; known: {", ".join(FIGURES)}')
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f'cannot create {args.out}: {exc}') from None
+    command = 'saw-ros figures' + (' --quick' if args.quick else '') + \
+        (f' --only {",".join(wanted)}' if args.only else '')
+    result = reproduce(args.out, wanted, quick=args.quick, progress=not args.quiet,
+                       command=command)
+    if not args.quiet:
+        for c in result.claims:
+            mark = 'held' if c.held else 'NOT held'
+            print(f'{c.id:3s} {mark:8s} {c.statement[:60]:60s} paper {c.paper[:14]:14s} '
+                  f'ours {c.ours[:40]}')
+    held = sum(1 for c in result.claims if c.held)
+    print(f'{len(result.files)} files in {args.out / "figures"}; report {result.report}; '
+          f'{held} of {len(result.claims)} claims held; {result.elapsed:.1f} s', file=sys.stderr)
+    return 0

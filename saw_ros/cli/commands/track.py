@@ -1,0 +1,215 @@
+"""Track the two pink markers in a video file (a real robot's, or one the camera node wrote).
+
+The scale is either measured (--px-per-m: pixels per metre in the plane of the robot's motion,
+e.g. on a ruler in the picture) or taken from the markers themselves (--marker-spacing-m: the
+distance between the two markers' centres on the robot; a first pass over the video measures it
+in pixels). With both, the ruler sets the scale and the spacing helps pick the markers out. Give
+the slope of the surfaces as the level camera sees them (--slope-deg), and the lens calibration
+when the lens distorts (--camera-matrix and --dist-coeffs, OpenCV's model). Prints which scale
+was used, the frame counts, the position, speed and pitch summary and the steady-state mean speed
+over the last --steady-window seconds; --csv writes one row per frame (empty cells where nothing
+was measured: lost or ambiguous markers are never filled in). The tracker's options (colour
+window, region of interest, marker size, ...) are TrackerConfig's, listed below.
+
+Example: saw-ros track run.mp4 --px-per-m 1200 --slope-deg 20 --csv run.csv
+         saw-ros track robot.mp4 --marker-spacing-m 0.32 --roi 0,200,1280,560
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import sys
+import typing
+from pathlib import Path
+
+import numpy as np
+
+from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.tracker import OK, Tracker, TrackerConfig, scale_from_spacing
+from saw_ros.vision.video import VideoError, read_frames, video_info
+from saw_ros.cli.errors import UserError
+
+HELP = 'track the two pink markers in a video: position, speed, pitch, steady speed'
+
+COLUMNS = ('frame', 't', 'status', 'front_x', 'front_y', 'back_x', 'back_y', 'x', 'y',
+           'pitch_deg', 'vx', 'vy', 'vx_smoothed', 'vy_smoothed', 'steady_speed')
+SCALE_FRAMES = 120      # ok frames the first pass measures the marker spacing on
+
+
+def _numbers(kind, count=None):
+    """argparse type: comma-separated numbers (``count`` of them, or any of ``count``)."""
+    def parse(text: str):
+        try:
+            values = tuple(kind(v) for v in text.split(','))
+        except ValueError:
+            raise ValueError(f'{text!r} is not a comma-separated list of numbers') from None
+        if count is not None and len(values) not in count:
+            raise ValueError(f'{text!r}: give {" or ".join(map(str, count))} numbers')
+        return values
+    parse.__name__ = 'list of numbers'
+    return parse
+
+
+def config_options():
+    """(field name, flag, argparse keywords) for every TrackerConfig field, from the field's
+    type, default and description: the command line and the dataclass cannot disagree."""
+    hints = typing.get_type_hints(TrackerConfig)
+    for f in dataclasses.fields(TrackerConfig):
+        kind = hints[f.name]
+        args = typing.get_args(kind)
+        if typing.get_origin(kind) is typing.Union and type(None) in args:
+            kind = next(a for a in args if a is not type(None))
+        if typing.get_origin(kind) is tuple:
+            item = typing.get_args(kind)[0]
+            kw = dict(type=_numbers(item, (len(typing.get_args(kind)),)),
+                      metavar=','.join('ABCDEFGH'[:len(typing.get_args(kind))]))
+        else:
+            kw = dict(type=kind)
+        default = f.default
+        shown = 'none' if default is None else f'{default:.6g}' if isinstance(default, float) \
+            else default
+        kw.update(default=default, help=f"{f.metadata['help']} (default {shown})")
+        yield f.name, f.metadata.get('flag', '--' + f.name.replace('_', '-')), kw
+
+
+def add_arguments(p):
+    p.add_argument('video', help='video file (.mp4, .avi, ... anything OpenCV reads)')
+    g = p.add_argument_group('scale and camera')
+    g.add_argument('--px-per-m', type=float, default=None,
+                   help='pixels per metre in the plane of motion (a ruler in the picture); '
+                        'without it --marker-spacing-m sets the scale')
+    g.add_argument('--slope-deg', type=float, default=0.0,
+                   help='slope of the surfaces as the level camera sees them, degrees')
+    g.add_argument('--center-x', type=float, default=0.33,
+                   help='surface-frame x seen at the image centre, m (an origin; speeds do not '
+                        'depend on it; the camera node default is 0.33)')
+    g.add_argument('--center-y', type=float, default=0.0225,
+                   help='surface-frame y seen at the image centre, m')
+    g.add_argument('--mirror', action='store_true',
+                   help='the robot travels towards the left of the image')
+    g.add_argument('--fps', type=float, default=0.0,
+                   help='frame rate, when the file does not say it or says it wrongly')
+    g.add_argument('--camera-matrix', type=_numbers(float, (4,)), default=None,
+                   metavar='FX,FY,CX,CY', help='camera matrix of the lens calibration, px '
+                                               '(with --dist-coeffs)')
+    g.add_argument('--dist-coeffs', type=_numbers(float, (4, 5, 8)), default=None,
+                   metavar='K1,K2,P1,P2[,K3]', help='lens distortion coefficients (OpenCV '
+                                                    'order): marker centres are undistorted')
+    g.add_argument('--csv', type=Path, default=None, help='write one row per frame here')
+    m = p.add_argument_group('markers and tracker (saw_ros.vision.tracker.TrackerConfig)')
+    for name, flag, kw in config_options():
+        m.add_argument(flag, dest=name, **kw)
+
+
+def config_from_args(args) -> TrackerConfig:
+    return TrackerConfig(**{name: getattr(args, name) for name, _, _ in config_options()})
+
+
+def track_video(path, camera_kw: dict, config: TrackerConfig, fps: float = 0.0,
+                stop_after_ok: int = 0):
+    """FrameResults of every frame of a video (or until ``stop_after_ok`` ok frames); the
+    camera's size comes from the file."""
+    _, _, width, height = video_info(path)
+    tracker = Tracker(CameraModel(width=width, height=height, **camera_kw), config)
+    results = []
+    for _, t, frame in read_frames(path, fps or None):
+        results.append(tracker.update(frame, t))
+        if stop_after_ok and tracker.counters.ok >= stop_after_ok:
+            break
+    return results, tracker
+
+
+def measure_scale(path, camera_kw: dict, config: TrackerConfig, spacing: float,
+                  fps: float = 0.0):
+    """(px per metre, frames, spread px) making the markers ``spacing`` m apart, from the first
+    SCALE_FRAMES frames with both markers (the spacing in pixels is not known yet: the pair is
+    picked out by the robot's line, size, colour and motion), or None."""
+    blind = dataclasses.replace(config, marker_spacing=None, marker_diameter=None)
+    kw = dict(camera_kw, scale=1000.0)          # a placeholder: pixels are what is measured
+    results, _ = track_video(path, kw, blind, fps, stop_after_ok=SCALE_FRAMES)
+    return scale_from_spacing(results, spacing)
+
+
+def _cells(k, r):
+    def xy(p):
+        return ('', '') if p is None else (f'{p.real:.6f}', f'{p.imag:.6f}')
+    return [k, f'{r.t:.6f}', r.status, *xy(r.front), *xy(r.back), *xy(r.position),
+            '' if r.pitch is None else f'{math.degrees(r.pitch):.4f}', *xy(r.velocity),
+            *xy(r.velocity_smoothed), '' if r.steady_speed is None else f'{r.steady_speed:.6f}']
+
+
+def run(args):
+    try:
+        config = config_from_args(args)
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    if args.px_per_m is not None and not args.px_per_m > 0:
+        raise UserError(f'--px-per-m = {args.px_per_m} must be > 0')
+    if args.px_per_m is None and config.marker_spacing is None:
+        raise UserError('give the scale: --px-per-m (pixels per metre, from a ruler in the '
+                        'picture) or --marker-spacing-m (the markers\' distance on the robot)')
+    if (args.dist_coeffs is None) != (args.camera_matrix is None):
+        raise UserError('--dist-coeffs and --camera-matrix go together (the lens calibration)')
+    camera_kw = dict(slope=math.radians(args.slope_deg), center_x=args.center_x,
+                     center_y=args.center_y, mirror=args.mirror)
+    if args.dist_coeffs is not None:
+        camera_kw.update(dist_coeffs=args.dist_coeffs, dist_matrix=args.camera_matrix)
+    try:
+        if args.px_per_m is not None:
+            scale = args.px_per_m
+            scale_text = f'scale: {scale:g} px/m (--px-per-m)'
+        else:
+            measured = measure_scale(args.video, camera_kw, config, config.marker_spacing,
+                                     args.fps)
+            if measured is None:
+                raise UserError('the marker spacing could not be measured: no frame with both '
+                                'markers told apart (try --roi around the track, or give '
+                                '--px-per-m)')
+            scale, n, spread = measured
+            scale_text = (f'scale: {scale:.2f} px/m from the marker spacing '
+                          f'{config.marker_spacing:g} m (--marker-spacing-m; median of {n} '
+                          f'frames, spread +-{spread:.2f} px)')
+        results, tracker = track_video(args.video, dict(camera_kw, scale=scale), config,
+                                       args.fps)
+    except (VideoError, ValueError) as exc:
+        raise UserError(str(exc)) from exc
+    if args.csv is not None:
+        with open(args.csv, 'w', newline='') as f:
+            w = csv.writer(f)
+            w.writerow(COLUMNS)
+            for k, r in enumerate(results):
+                w.writerow(_cells(k, r))
+    c = tracker.counters
+    ok = [r for r in results if r.status == OK]
+    print(f'{args.video}: {c.frames} frames over {results[-1].t:.3f} s; ok {c.ok}, '
+          f'front lost {c.front_lost}, back lost {c.back_lost}, ambiguous {c.ambiguous}, '
+          f'longest run of bad frames {c.longest_not_ok}')
+    print(scale_text)
+    if args.px_per_m is not None and config.marker_spacing is not None:
+        check = scale_from_spacing(results, 1.0)
+        if check is not None:
+            print(f'marker spacing measured with that scale: {check[0] / scale:.4f} m '
+                  f'(--marker-spacing-m {config.marker_spacing:g})')
+    if len(ok) < 2:
+        print('too few frames with both markers: no position or speed', file=sys.stderr)
+        return 1
+    x = np.array([r.position.real for r in ok])
+    pitch = np.degrees([r.pitch for r in ok])
+    v = np.array([r.velocity.real for r in ok if r.velocity is not None])
+    print(f'position x: {x[0] * 100:.2f} -> {x[-1] * 100:.2f} cm '
+          f'(travel {(x[-1] - x[0]) * 100:.2f} cm in {ok[-1].t - ok[0].t:.3f} s)')
+    if v.size:
+        print(f'speed (instantaneous): mean {v.mean() * 100:.3f} cm/s, '
+              f'min {v.min() * 100:.3f}, max {v.max() * 100:.3f}')
+    print(f'pitch: mean {pitch.mean():.3f} deg, min {pitch.min():.3f}, max {pitch.max():.3f}')
+    steady = results[-1].steady_speed if results[-1].ok else next(
+        (r.steady_speed for r in reversed(ok) if r.steady_speed is not None), None)
+    if steady is None:
+        print(f'steady-state speed: not available (the run is shorter than '
+              f'{config.steady_window * config.steady_fill:g} s of tracked frames)')
+    else:
+        print(f'steady-state speed (last {config.steady_window:g} s): {steady * 100:.3f} cm/s')
+    if args.csv is not None:
+        print(f'per-frame table: {args.csv}')
+    return 0

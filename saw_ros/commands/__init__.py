@@ -1,1 +1,0 @@
-"""Subcommands of ``saw-ros``: one module each (see ``saw_ros/cli.py``)."""

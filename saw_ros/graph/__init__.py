@@ -1,0 +1,1 @@
+"""The graph layer: starts and stops our nodes as processes (no rclpy import)."""

@@ -1,0 +1,219 @@
+"""The whole ROS graph as separate processes: simulator, camera, vision, comparison, recorder.
+
+Used by the main job (``saw-ros demo``), the full-graph integration test and the pipeline
+benchmark. No rclpy import here: each node is its own process (``saw_ros.graph.process``), in a private
+DDS domain; the simulator starts stepping only once every one of its topics has a subscriber (the
+recorder subscribes to all of them), so nothing is missed at the start. The run ends when the
+simulator reaches its duration and the comparison node has published its final summary.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Optional
+
+from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command
+
+
+MATCH_TIMEOUT = 20.0     # s; then the run goes on anyway (and the bench reports what was lost)
+
+
+class PipelineError(RuntimeError):
+    """A node of the graph failed (the message names it and quotes its log)."""
+
+
+@dataclass
+class PipelineRun:
+    out_dir: Path
+    bag_dir: Optional[Path]
+    comparison: Dict[str, object]
+    exit_codes: Dict[str, int]
+    wall_s: float
+    logs: Dict[str, Path] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return all(code == 0 for code in self.exit_codes.values())
+
+
+def _tail(path: Path, lines: int = 15) -> str:
+    try:
+        return '\n'.join(path.read_text(errors='replace').splitlines()[-lines:])
+    except OSError:
+        return ''
+
+
+# What the graph's recorder records by default: every topic of the graph except the raw camera
+# frames, which camera.mp4 keeps. Recording 166 MB/s of raw 1280x720 frames as well costs the
+# recorder about 0.3 of a core more and halves the real-time factor the five nodes sustain on two
+# cores without losing a message (0.5 instead of about 1.0, measured with
+# `python -m saw_ros.bench.pipeline`). Pass ``record_topics=ALL_TOPICS`` to keep them.
+RECORDED_TOPICS = ['/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
+                   '/saw/joint_states', '/saw/camera/camera_info', '/saw/tracking/pose',
+                   '/saw/tracking/front', '/saw/tracking/back', '/saw/tracking/twist',
+                   '/saw/tracking/twist_smoothed', '/saw/tracking/steady_speed',
+                   '/saw/tracking/status', '/saw/comparison']
+ALL_TOPICS = RECORDED_TOPICS + ['/saw/camera/image_raw']
+
+
+def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float = 1.0,
+                 scenario: Optional[Dict[str, object]] = None, record: bool = True,
+                 bag_dir: Optional[Path] = None, video: bool = True,
+                 camera: Optional[Dict[str, object]] = None,
+                 reference_file: Optional[Path] = None, timeout: Optional[float] = None,
+                 progress=None, record_topics: Optional[List[str]] = None) -> PipelineRun:
+    """Run the graph once; always stops every process it started (also on Ctrl-C).
+
+    ``record_topics``: what the recorder records (default ``RECORDED_TOPICS``).
+    """
+    out_dir = Path(out_dir)
+    logs = out_dir / 'logs'
+    out_dir.mkdir(parents=True, exist_ok=True)
+    env = isolated_ros_env()
+    scenario = dict(scenario or {})
+    report_path = out_dir / 'comparison.json'
+    if report_path.exists():
+        report_path.unlink()
+    camera_params = dict(camera or {})
+    if video:
+        camera_params['video_path'] = str(out_dir / 'camera.mp4')
+    nodes: List[ManagedProcess] = []
+    codes: Dict[str, int] = {}
+    start = time.monotonic()
+
+    def launch(name, **params):
+        p = ManagedProcess(name, node_command(name, params=params), env, logs)
+        nodes.append(p)
+        return p
+
+    def check_alive():
+        for p in nodes:
+            if p.returncode not in (None, 0):
+                raise PipelineError(f'{p.name} exited with {p.returncode}:\n{_tail(p.log_path)}')
+
+    def wait_for_log(p, texts, timeout):
+        until = time.monotonic() + timeout
+        while time.monotonic() < until and not all(t in p.output() for t in texts):
+            check_alive()
+            time.sleep(0.1)
+
+    try:
+        # Every topic needs a subscriber before the first step: the recorder's, or with no
+        # recorder the camera's and comparison's (then only /saw/pose and /saw/joint_states).
+        simulator = launch('simulator', duration=float(duration),
+                           real_time_factor=float(real_time_factor),
+                           wait_for_subscribers=1 if record else 0, **scenario)
+        # An empty value ('-p reference_file:=') is a parse error for rcl: leave it out.
+        comparison = launch('comparison', report_path=str(report_path), exit_when_done=True,
+                            idle_timeout=2.0,
+                            **({'reference_file': str(reference_file)} if reference_file else {}))
+        # The level camera sees the surfaces at the run's slope; the tracker must know it too.
+        slope = float(scenario.get('scenario.slope', 0.0))
+        vision_node = launch('vision', use_sim_time=True, slope=slope)
+        camera_node = launch('camera', use_sim_time=True, slope=slope, **camera_params)
+        if record:
+            # With a recorder the simulator starts stepping once the recorder has matched its
+            # topics (/saw/twist & co. have no other subscriber). So the recorder comes last:
+            # once camera and comparison have matched the simulator (their logs; started
+            # together, the camera or comparison sometimes matched 0.25-0.5 s after the
+            # recorder: their first poses were lost) and the tracker is up. The recorder matches
+            # the camera's and tracker's topics (published from the first frame on) in the same
+            # discovery pass as the simulator's.
+            wait_for_log(camera_node, ['inputs matched'], MATCH_TIMEOUT)
+            wait_for_log(comparison, ['ground truth matched'], MATCH_TIMEOUT)
+            wait_for_log(vision_node, ['tracking the markers'], MATCH_TIMEOUT)
+            if bag_dir is None:
+                bag_dir = Path('bags') / time.strftime('%Y-%m-%d_%H-%M-%S_demo')
+            extra = {'topics': '[' + ','.join(f"'{t}'" for t in (
+                record_topics or RECORDED_TOPICS)) + ']'}
+            launch('recorder', output=str(bag_dir), **extra)
+        limit = timeout if timeout is not None else 60.0 + 3.0 * duration / max(
+            real_time_factor, 0.1)
+        deadline = time.monotonic() + limit
+        while simulator.returncode is None or comparison.returncode is None:
+            check_alive()
+            if time.monotonic() > deadline:
+                raise PipelineError(f'the run did not finish within {limit:.0f} s; see {logs}')
+            if progress is not None:
+                progress()
+            time.sleep(0.2)
+    finally:
+        # Downstream first, the recorder last so that it keeps every message until the end.
+        for p in sorted(nodes, key=lambda p: p.name == 'recorder'):
+            codes[p.name] = p.stop(timeout=10.0)
+    comparison_values = json.loads(report_path.read_text()) if report_path.exists() else {}
+    return PipelineRun(out_dir, Path(bag_dir) if record else None, comparison_values, codes,
+                       time.monotonic() - start, {p.name: p.log_path for p in nodes})
+
+
+def write_report(run: PipelineRun) -> Path:
+    """report.png: true and tracked position and speed against simulated time, from the bag."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from saw_ros.ros import cdr
+    from saw_ros.bag.reader import BagReader
+
+    truth, tracked = [], []
+    for m in BagReader(str(run.bag_dir)).messages(['/saw/pose', '/saw/tracking/pose']):
+        t, x, _y, _theta = cdr.pose_stamped(m.data)
+        (truth if m.topic == '/saw/pose' else tracked).append((t, x))
+    truth, tracked = np.array(truth), np.array(tracked)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    c = run.comparison
+    if len(truth):
+        ax1.plot(truth[:, 0], truth[:, 1] * 100, label='simulation (1 kHz ground truth)')
+        v = np.gradient(truth[:, 1], truth[:, 0])
+        ax2.plot(truth[:, 0], v * 100, lw=0.6, alpha=0.6, label='simulation')
+    if len(tracked):
+        ax1.plot(tracked[:, 0], tracked[:, 1] * 100, '.', ms=2, label='tracking (60 fps)')
+        k = 15                                 # a quarter of a second of frames
+        if len(tracked) > 2 * k:
+            v = (tracked[k:, 1] - tracked[:-k, 1]) / (tracked[k:, 0] - tracked[:-k, 0])
+            ax2.plot(0.5 * (tracked[k:, 0] + tracked[:-k, 0]), v * 100, label='tracking '
+                     '(0.25 s window)')
+    if c.get('status') == 'steady':
+        for ax in (ax1, ax2):
+            ax.axvspan(c['steady_from_s'], c['steady_from_s'] + c['window_s'], color='0.9',
+                       label='measuring window' if ax is ax2 else None)
+        ax2.axhline(c['v_sim_m_s'] * 100, color='C0', ls='--', lw=1)
+        ax2.axhline(c['v_tracked_m_s'] * 100, color='C1', ls='--', lw=1)
+        ax2.axhline(c['v_theory_m_s'] * 100, color='k', ls=':', lw=1, label='v_theory')
+        title = (f"AR simulation {c['ar_sim']:.3f}, tracking {c['ar_tracked']:.3f}, relative "
+                 f"error {100 * c['relative_error']:.2f} % (slope {c['slope_deg']:.0f} deg, "
+                 f"{c['frequency_hz']:.2f} Hz)")
+    else:
+        title = f"comparison: {c.get('status', 'no result')}"
+    ax1.set_title(title, fontsize=10)
+    ax1.set_ylabel('position x (cm)')
+    ax2.set_ylabel('speed (cm/s)')
+    ax2.set_xlabel('simulated time (s)')
+    ax1.legend(fontsize=8)
+    ax2.legend(fontsize=8, loc='lower right')
+    fig.tight_layout()
+    path = run.out_dir / 'report.png'
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def format_comparison(c: Dict[str, object]) -> str:
+    if c.get('status') != 'steady':
+        return f"comparison: {c.get('status', 'no result')}"
+    lines = [f"AR simulation       {c['ar_sim']:.4f}",
+             f"AR tracking         {c['ar_tracked']:.4f}",
+             f"relative error      {100 * c['relative_error']:.2f} %",
+             f"v_theory            {100 * c['v_theory_m_s']:.3f} cm/s",
+             f"v simulation        {100 * c['v_sim_m_s']:.3f} cm/s",
+             f"v tracking          {100 * c['v_tracked_m_s']:.3f} cm/s",
+             f"steady from         {c['steady_from_s']:.2f} s, measured over "
+             f"{c['window_s']:.2f} s"]
+    if 'reference_error_sim' in c and math.isfinite(c['reference_error_sim']):
+        lines.append(f"simulation vs measured (paper): {100 * c['reference_error_sim']:.1f} % "
+                     f"({c.get('reference_source', '')})")
+    return '\n'.join(lines)

@@ -1,0 +1,161 @@
+"""Starting and stopping ROS 2 processes without launch: isolated DDS, clean shutdown.
+
+Used by the main job (``saw-ros demo``), the benchmarks and the integration tests. No rclpy import.
+
+A node started in the background of a non-interactive shell ignores SIGINT, so every child gets
+its own session (``start_new_session``) and is stopped with SIGINT to its process group, then
+SIGTERM, then SIGKILL after timeouts (``shared/docs/ros-notes.md``).
+"""
+from __future__ import annotations
+
+import collections
+import fcntl
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable, Dict, List, Optional, Sequence
+
+
+# Domain ids 1-100 keep Fast DDS's port arithmetic valid.
+DOMAIN_IDS = range(1, 101)
+DOMAIN_LOCKS = Path(tempfile.gettempdir()) / 'saw_ros_domains'
+HELD_DOMAINS = 16            # reservations one process keeps before it reuses its oldest
+_held: 'collections.OrderedDict[int, object]' = collections.OrderedDict()
+
+
+def reserve_domain() -> int:
+    """A DDS domain id that no other run of ours on this machine holds.
+
+    A random id alone collides between concurrent runs (tests, benchmarks, the main job): the
+    other run's nodes then appear in ours. Each id has a lock file; this process holds the lock of
+    the ids it hands out (the OS releases them when it exits), keeping its HELD_DOMAINS newest."""
+    DOMAIN_LOCKS.mkdir(exist_ok=True)
+    ids = list(DOMAIN_IDS)
+    random.shuffle(ids)
+    for domain in ids:
+        if domain in _held:
+            continue
+        lock = open(DOMAIN_LOCKS / f'{domain}.lock', 'a')
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        _held[domain] = lock
+        while len(_held) > HELD_DOMAINS:
+            _held.popitem(last=False)[1].close()
+        return domain
+    return random.choice(ids)    # every id is taken: share one rather than fail
+
+
+def isolated_ros_env(domain_id: Optional[int] = None, base: Optional[Dict[str, str]] = None):
+    """Environment for a private DDS domain on this host only.
+
+    ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST replaces the deprecated ROS_LOCALHOST_ONLY; the
+    domain is ``reserve_domain()``'s unless given.
+    """
+    env = dict(os.environ if base is None else base)
+    env.pop('ROS_LOCALHOST_ONLY', None)
+    env['ROS_DOMAIN_ID'] = str(domain_id if domain_id is not None else reserve_domain())
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    # Faster discovery (msg_config/fastdds_discovery.xml): with Fast DDS's defaults a participant
+    # that misses the initial announcements is found up to 3 s late, and loses what was published
+    # meanwhile. A user's own profile wins.
+    if not (env.get('FASTRTPS_DEFAULT_PROFILES_FILE') or env.get('FASTDDS_DEFAULT_PROFILES_FILE')):
+        from saw_ros.interface.config import config_path
+        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(config_path('fastdds_discovery.xml'))
+    env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    env['PYTHONUNBUFFERED'] = '1'
+    return env
+
+
+def wait_for(condition: Callable[[], bool], timeout: float, poll: float = 0.02,
+             spin: Optional[Callable[[float], None]] = None) -> bool:
+    """Wait until ``condition()`` holds or ``timeout`` seconds pass; ``spin(t)`` replaces sleeping
+    (an executor's spin_once) so that callbacks run while waiting. Returns the condition."""
+    deadline = time.monotonic() + timeout
+    while True:
+        if condition():
+            return True
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return bool(condition())
+        if spin is not None:
+            spin(min(poll, remaining))
+        else:
+            time.sleep(min(poll, remaining))
+
+
+class ManagedProcess:
+    """A child process in its own session, its output in a log file, stopped cleanly."""
+
+    def __init__(self, name: str, argv: Sequence[str], env: Dict[str, str],
+                 log_dir: Path, cwd: Optional[Path] = None):
+        self.name = name
+        self.argv = list(argv)
+        self.log_path = Path(log_dir) / f'{name}.log'
+        self.log_path.parent.mkdir(parents=True, exist_ok=True)
+        self._log = open(self.log_path, 'wb')
+        self.proc = subprocess.Popen(self.argv, env=env, cwd=cwd, stdout=self._log,
+                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                     start_new_session=True)
+
+    @property
+    def returncode(self) -> Optional[int]:
+        return self.proc.poll()
+
+    def output(self) -> str:
+        if not self._log.closed:    # still readable after wait()/stop() closed the log
+            self._log.flush()
+        return self.log_path.read_text(errors='replace')
+
+    def signal(self, sig: int) -> None:
+        try:
+            os.killpg(self.proc.pid, sig)
+        except ProcessLookupError:
+            pass
+
+    def stop(self, timeout: float = 10.0) -> int:
+        """SIGINT, then SIGTERM, then SIGKILL; returns the exit code (negative: killed)."""
+        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, timeout / 2),
+                          (signal.SIGKILL, 5.0)):
+            if self.proc.poll() is not None:
+                break
+            self.signal(sig)
+            try:
+                self.proc.wait(wait)
+            except subprocess.TimeoutExpired:
+                continue
+        code = self.proc.wait()
+        self._log.close()
+        return code
+
+    def wait(self, timeout: Optional[float] = None) -> int:
+        code = self.proc.wait(timeout)
+        self._log.close()
+        return code
+
+
+NODE_PACKAGE = 'saw_ros.ros.nodes'
+
+
+def node_command(executable: str, *ros_args: str, params: Optional[Dict[str, object]] = None,
+                 params_file: Optional[Path] = None, package: str = NODE_PACKAGE) -> List[str]:
+    """argv to run one of our executables (a module of ``package``) with ROS arguments, by
+    module (no PATH lookup)."""
+    argv = [sys.executable, '-m', f'{package}.{executable}']
+    extra = list(ros_args)
+    if params_file is not None:
+        extra += ['--params-file', str(params_file)]
+    for key, value in (params or {}).items():
+        if isinstance(value, bool):
+            value = 'true' if value else 'false'
+        extra += ['-p', f'{key}:={value}']
+    if extra:
+        argv += ['--ros-args'] + extra
+    return argv

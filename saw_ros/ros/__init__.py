@@ -1,0 +1,1 @@
+"""The ROS layer: the only code that imports rclpy and message packages."""

@@ -1,0 +1,319 @@
+"""The camera node: a virtual 60 fps side-view camera of the simulated robot.
+
+Subscribes /saw/pose (PoseStamped) and /saw/joint_states (JointState, ``helix`` = wave phase) and
+renders one frame for every 1/fps s of SIMULATED time, stamped with that time: frame k is drawn
+once both streams have reached t_k + exposure / 2 (poses are interpolated between samples), and
+no frame is ever skipped, however late. Publishes /saw/camera/image_raw (sensor_msgs/Image, bgr8)
+and /saw/camera/camera_info (sensor_msgs/CameraInfo: K, P of the rendering, no distortion), both
+with the frame's stamp. Optionally writes the frames to an .mp4 (``video_path``).
+
+The drawing lives in ``saw_ros.vision.frames``; docs/vision.md lists topics and parameters.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+import queue
+import sys
+import threading
+import time
+from typing import List
+
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image, JointState
+from geometry_msgs.msg import PoseStamped
+
+from saw_ros.ros import cdr
+from saw_ros.ros import conversions as conv
+from saw_ros.core.params import ParameterError, Scenario
+from saw_ros.ros.params import ScenarioParameters, accept_integers_for_doubles
+from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.frames import Renderer, RenderOptions, RobotPose
+from saw_ros.vision.video import VideoError, VideoWriter
+from saw_ros.ros.runtime import (INPUT_DEPTH, STREAM_QOS, NodeFailure, image_publisher_qos, run_node,
+                     with_depth)
+
+NS = 1_000_000_000
+KEEP = 2.0          # s of simulated time kept in the pose buffers
+OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)
+
+# name, default, description (unit in brackets)
+PARAMETERS = (
+    ('width', 1280, 'image width [px]'),
+    ('height', 720, 'image height [px]'),
+    ('fps', 60.0, 'frames per second of simulated time [Hz]'),
+    ('scale', 1200.0, 'pixels per metre in the plane of motion [px/m]; used when fov is 0'),
+    ('fov', 0.0, 'horizontal field of view [rad]; > 0 overrides scale'),
+    ('distance', 1.0, 'camera to the plane of motion [m]: focal length f = scale * distance'),
+    ('slope', 0.0, 'slope of the surfaces as the level camera sees them [rad]; set it to the '
+                   "simulator's scenario.slope"),
+    ('center_x', 0.33, 'surface-frame x seen at the image centre [m]'),
+    ('center_y', 0.0225, 'surface-frame y seen at the image centre [m]'),
+    ('noise', 0.0, 'sensor noise, standard deviation [grey levels]'),
+    ('exposure', 0.0, 'exposure time for motion blur [s]; 0 = none'),
+    ('blur_samples', 5, 'sub-frames averaged over the exposure'),
+    ('brightness', 1.0, 'brightness factor (1 = nominal)'),
+    ('texture', True, 'textured wall behind the track'),
+    ('seed', 0, 'random seed of texture and noise'),
+    ('video_path', '', '.mp4 file to write the frames to; empty = none'),
+    ('frame_id', 'saw_camera', 'frame_id of the images and camera info'),
+    ('pose_topic', '/saw/pose', 'robot pose input (PoseStamped)'),
+    ('joint_states_topic', '/saw/joint_states', "joint states input (JointState with 'helix')"),
+)
+
+
+class _Series:
+    """Time-stamped samples (stamps in ns, increasing) with linear interpolation."""
+
+    def __init__(self):
+        self.t: List[int] = []
+        self.v: List[tuple] = []
+
+    def add(self, t: int, values: tuple) -> bool:
+        """Append; False (and cleared) when time went backwards (a replay restarted)."""
+        if self.t and t <= self.t[-1]:
+            if t == self.t[-1]:
+                return True
+            self.t.clear()
+            self.v.clear()
+            self.t.append(t)
+            self.v.append(values)
+            return False
+        self.t.append(t)
+        self.v.append(values)
+        if len(self.t) > 4096 and self.t[-1] - self.t[0] > KEEP * NS:
+            cut = bisect.bisect_left(self.t, self.t[-1] - int(KEEP * NS))
+            del self.t[:cut]
+            del self.v[:cut]
+        return True
+
+    @property
+    def last(self) -> int:
+        return self.t[-1]
+
+    def at(self, t: float, wrap: bool = False):
+        """Values at time t (ns, float); clamped to the ends. ``wrap``: angles modulo 2 pi."""
+        i = bisect.bisect_left(self.t, t)
+        if i <= 0:
+            return self.v[0]
+        if i >= len(self.t):
+            return self.v[-1]
+        t0, t1 = self.t[i - 1], self.t[i]
+        a, b = self.v[i - 1], self.v[i]
+        w = (t - t0) / (t1 - t0)
+        if wrap:
+            return tuple(x + w * ((y - x + math.pi) % (2 * math.pi) - math.pi)
+                         for x, y in zip(a, b))
+        return tuple(x + w * (y - x) for x, y in zip(a, b))
+
+
+class CameraNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__('camera', **kwargs)
+        try:
+            # Only what the drawing needs: the robot geometry and the gap.
+            exclude = [n for n, _, _ in Scenario().describe()
+                       if not (n.startswith('robot.') or n == 'scenario.gap')]
+            self.params = ScenarioParameters(self, exclude=exclude,
+                                             frozen={'robot': 'restart the camera',
+                                                     'scenario.gap': 'restart the camera'})
+            floats = {n: d for n, d, _ in PARAMETERS if isinstance(d, float)}
+            accept_integers_for_doubles(self, floats, floats)
+            for name, default, text in PARAMETERS:
+                self.declare_parameter(name, default, ParameterDescriptor(
+                    description=text, read_only=True))
+            p = {name: self.get_parameter(name).value for name, _, _ in PARAMETERS}
+            camera = CameraModel(width=int(p['width']), height=int(p['height']),
+                                 scale=float(p['scale']), slope=float(p['slope']),
+                                 center_x=float(p['center_x']), center_y=float(p['center_y']),
+                                 distance=float(p['distance']))
+            if p['fov'] > 0:
+                camera = camera.with_fov(float(p['fov']))
+            options = RenderOptions(noise=float(p['noise']), exposure=float(p['exposure']),
+                                    blur_samples=int(p['blur_samples']),
+                                    brightness=float(p['brightness']), texture=bool(p['texture']),
+                                    seed=int(p['seed']))
+            if not p['fps'] > 0:
+                raise ValueError(f"fps = {p['fps']} must be > 0")
+            scenario = self.params.scenario
+            self.renderer = Renderer(scenario.robot, scenario.scenario.gap, camera, options)
+            self.writer = VideoWriter(p['video_path'], p['fps'], (camera.width, camera.height)) \
+                if p['video_path'] else None
+        except (ParameterError, ParameterException, ValueError, VideoError) as exc:
+            raise NodeFailure(f'invalid parameters: {exc}') from exc
+        self.camera = camera
+        self.fps = float(p['fps'])
+        self.frame_id = p['frame_id']
+        self.half_exposure_ns = options.exposure / 2.0 * NS
+        self.info = self._camera_info()
+        self._poses = _Series()       # (x, y, theta)
+        self._phases = _Series()      # (helix phase,)
+        self._next = None          # index of the next frame
+        self.frames = 0
+        self.received = {'poses': 0, 'joint_states': 0}
+        self.busy = {'render': 0.0, 'publish': 0.0, 'video': 0.0}     # wall s per stage
+        # Publishing a 2.7 MB image and encoding it into the video take longer than rendering
+        # it (measured in the full graph: publish 7 ms, video 7 ms, render 4 ms a frame): an
+        # output thread does both, in frame order, so that the executor thread keeps taking
+        # the 1 kHz inputs (its queues hold 200 ms) and rendering. OpenCV releases the GIL.
+        self._frames_out: 'queue.Queue' = queue.Queue(maxsize=OUTPUT_QUEUE)
+        self._thread = None
+        self._output_error = None
+        # Images go out pre-encoded (one copy of the pixels instead of three); the 1 kHz inputs
+        # come in raw and only the fields used are read (a camera uses 60 of 2000 messages/s).
+        self._image_cdr = cdr.ImageCdr(camera.width, camera.height, 'bgr8', camera.width * 3,
+                                       self.frame_id)
+        self._helix = cdr.JointPosition('helix')
+        out_qos = image_publisher_qos()
+        in_qos = with_depth(STREAM_QOS, INPUT_DEPTH)
+        self._pub_image = self.create_publisher(Image, '/saw/camera/image_raw', out_qos)
+        self._pub_info = self.create_publisher(CameraInfo, '/saw/camera/camera_info', out_qos)
+        self._inputs = (
+            self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
+                                     raw=True),
+            self.create_subscription(JointState, p['joint_states_topic'], self._on_joints_raw,
+                                     in_qos, raw=True))
+        # 'inputs matched' once both inputs have a publisher: from then on no input is missed
+        # (run_pipeline waits for this line before letting the simulator start).
+        # (A steady clock: with use_sim_time the node's clock stands still until /clock runs.)
+        self._match_timer = self.create_timer(0.05, self._report_matched,
+                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(
+            f'camera {camera.width}x{camera.height} at {self.fps:g} fps of simulated time, '
+            f'{camera.scale:g} px/m (f = {camera.focal:g} px), slope '
+            f'{math.degrees(camera.slope):g} deg'
+            + (f', writing {p["video_path"]}' if self.writer else ''))
+
+    def _camera_info(self) -> CameraInfo:
+        cam = self.camera
+        info = CameraInfo()
+        info.header.frame_id = self.frame_id
+        info.width, info.height = cam.width, cam.height
+        info.distortion_model = 'plumb_bob'
+        info.d = [0.0] * 5
+        info.k = [float(v) for v in cam.K.ravel()]
+        info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+        info.p = [float(v) for v in cam.P.ravel()]
+        return info
+
+    # -- inputs --------------------------------------------------------------------------------
+    def _report_matched(self) -> None:
+        if all(sub.get_publisher_count() > 0 for sub in self._inputs):
+            self.get_logger().info('inputs matched')
+            self._match_timer.cancel()
+            self.destroy_timer(self._match_timer)
+
+    def _on_pose_raw(self, data: bytes) -> None:
+        t, x, y, theta = cdr.pose_stamped_ns(data)
+        self._add_pose(t, x, y, theta)
+
+    def _add_pose(self, t: int, x: float, y: float, theta: float) -> None:
+        self.received['poses'] += 1
+        if not self._poses.add(t, (x, y, theta)):
+            self._restart()
+        self._render_due()
+
+    def _on_joints_raw(self, data: bytes) -> None:
+        self._add_phase(*self._helix(data))
+
+    def _add_phase(self, t: int, phase) -> None:
+        self.received['joint_states'] += 1
+        if phase is None:
+            return
+        if not self._phases.add(t, (phase,)):
+            self._restart()
+        self._render_due()
+
+    def _restart(self) -> None:
+        self.get_logger().warning('input time went backwards: restarting the frame clock')
+        self._next = None
+
+    # -- frames --------------------------------------------------------------------------------
+    def frame_ns(self, k: int) -> int:
+        return int(round(k * NS / self.fps))
+
+    def pose_at(self, t_ns: float) -> RobotPose:
+        x, y, theta = self._poses.at(t_ns)
+        (phase,) = self._phases.at(t_ns, wrap=True)
+        return RobotPose(x, y, theta, phase % (2.0 * math.pi))
+
+    def _render_due(self) -> None:
+        if not self._poses.t or not self._phases.t:
+            return
+        if self._next is None:
+            start = max(self._poses.t[0], self._phases.t[0])
+            self._next = int(math.ceil(start * self.fps / NS - 1e-9))
+        ready = min(self._poses.last, self._phases.last)
+        while self.frame_ns(self._next) + self.half_exposure_ns <= ready:
+            t_ns = self.frame_ns(self._next)
+            t0 = time.perf_counter()
+            frame = self.renderer.render(self.pose_at(t_ns), (),
+                                         lambda t: self.pose_at(t * NS), t_ns / NS)
+            self.busy['render'] += time.perf_counter() - t0
+            self._output(frame, t_ns)
+            self._next += 1
+
+    def _output(self, frame, t_ns: int) -> None:
+        """Hand a rendered frame to the output thread (in order; waits when it is far behind)."""
+        if self._output_error is not None:
+            raise NodeFailure(f'camera output failed: {self._output_error}')
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._output_loop, name='camera-output',
+                                            daemon=True)
+            self._thread.start()
+        self._frames_out.put((frame, t_ns))
+
+    def _output_loop(self) -> None:
+        while True:
+            item = self._frames_out.get()
+            if item is None:
+                return
+            try:
+                self._publish(*item)
+            except Exception as exc:  # noqa: BLE001  (reported by the executor thread)
+                # run_node closes the node (and this thread) before it shuts the context down;
+                # a context shut down by someone else is a stop, not a failure.
+                if self._output_error is None and self.context.ok():
+                    self._output_error = exc
+
+    def _publish(self, frame, t_ns: int) -> None:
+        """Publish image and camera info, then add the frame to the video (even when publishing
+        failed: after Ctrl-C the context is gone but the video still gets every frame)."""
+        t0 = time.perf_counter()
+        try:
+            conv.time_msg(t_ns, self.info.header.stamp)
+            self._pub_image.publish(self._image_cdr(np.ascontiguousarray(frame), t_ns))
+            self._pub_info.publish(self.info)
+            self.frames += 1
+        finally:
+            t1 = time.perf_counter()
+            self.busy['publish'] += t1 - t0
+            if self.writer is not None:
+                self.writer.write(frame)
+                self.busy['video'] += time.perf_counter() - t1
+
+    def close(self) -> None:
+        if self._thread is not None:
+            self._frames_out.put(None)
+            self._thread.join()
+            self._thread = None
+        if self.writer is not None:
+            self.writer.close()
+        # After Ctrl-C the context (and /rosout) may be gone: plain stderr. The pipeline
+        # benchmark reads this line to check that no input was lost.
+        print('[camera] inputs received: ' + ' '.join(f'{k}={v}' for k, v in
+              self.received.items()) + f' frames={self.frames}; wall s spent: '
+              + ' '.join(f'{k}={v:.2f}' for k, v in self.busy.items()), file=sys.stderr,
+              flush=True)
+
+
+def main(args=None) -> int:
+    return run_node(CameraNode, args=args, events=True)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

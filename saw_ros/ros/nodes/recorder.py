@@ -1,0 +1,428 @@
+"""Node ``recorder``: record topics into a rosbag2 bag (MCAP storage) as ``ros2 bag record`` would.
+
+Parameters
+  topics      string[]  topics to record; empty: ``msg_config/record_topics.yaml`` (every topic of
+                        saw_ros and /clock, plus any topic under its ``prefixes``, less its
+                        ``exclude``: the raw camera frames)
+  exclude_topics string[] topics under a prefix not to record (default: the file's ``exclude``,
+                        the raw camera frames; ``-p exclude_topics:="['']"`` records them too);
+                        a topic named in ``topics`` or the file's ``topics`` is always recorded
+  output      string    bag directory; empty: ``<bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>``
+  bags_dir    string    where new bags go (default ``bags``)
+  label       string    what is recorded, for the directory name (default ``default``)
+  queue_depth int       subscription history depth (default 1000)
+  compression string    ``zstd`` (default) or ``none``
+  chunk_size  int       bytes per MCAP chunk (default 786432, rosbag2's)
+
+Subscriptions are raw: the CDR bytes are written as received, never re-serialised. A callback
+takes every message waiting on its subscription (the executor's per-message cost dominates
+otherwise) and queues it; a writer thread does the MCAP work and compression, so disk and zstd
+never hold up the executor. Topics that appear later are subscribed when discovery sees them.
+Ctrl-C / SIGTERM drain the subscriptions, then finish the MCAP file and write metadata.yaml.
+Every parameter is read once, at start: all are read-only (``ros2 param set`` is refused).
+
+Loss. A subscription that cannot keep up loses the oldest messages of its queue (KEEP_LAST), and
+a publisher's history can overwrite messages not yet delivered. Either way the publication
+sequence numbers of what arrives have gaps: the final line gives the messages lost per topic,
+``lost N (topic: n, ...)``, and metadata.yaml keeps them in ``custom_data``
+(``saw_ros.lost_messages``, JSON). Jazzy's rclpy gives no publisher GID in the message info, so
+messages of several publishers on one topic are told apart by their sequence numbers
+(``LossCounter``); loss before the first message of a publisher is not seen.
+"""
+from __future__ import annotations
+
+import datetime
+import importlib
+import json
+import os
+import queue
+import sys
+import threading
+import time
+from typing import Dict, List
+
+import yaml
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from saw_ros.bag.schema import UnknownMessageType, check_definitions
+from saw_ros.bag.writer import BagWriteError, BagWriter, INFINITE, qos_profile_dict
+from saw_ros.ros.runtime import NodeFailure, run_node
+
+_STOP = object()
+# (name, default, description); every one read once at start, so read-only.
+PARAMETERS = (
+    ('topics', [''], 'topics to record; empty: msg_config/record_topics.yaml'),
+    ('exclude_topics', None, "topics under a prefix not to record (default: record_topics.yaml's "
+                             "exclude, the raw camera frames; [''] = none)"),
+    ('output', '', 'bag directory; empty: <bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>'),
+    ('bags_dir', 'bags', 'where new bags go'),
+    ('label', 'default', 'what is recorded, for the directory name'),
+    ('queue_depth', 1000, 'subscription history depth (>= 1)'),
+    ('compression', 'zstd', 'zstd or none'),
+    ('chunk_size', 768 * 1024, 'bytes per MCAP chunk (>= 1)'),
+    ('discovery_period', 0.25, 'seconds between looks for new topics (> 0)'),
+)
+# Types received on a second DDS participant (see Recorder.__init__).
+LARGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
+
+
+def default_topics():
+    """(topics, prefixes) from msg_config/record_topics.yaml (source tree or installed share, as
+    config_path finds it: no ament index needed)."""
+    from saw_ros.interface.config import config_path
+    path = config_path('record_topics.yaml')
+    if path.is_file():
+        with open(path, encoding='utf-8') as f:
+            doc = yaml.safe_load(f) or {}
+        return list(doc.get('topics') or []), list(doc.get('prefixes') or [])
+    return ['/clock'], ['/saw/']
+
+
+def default_excluded() -> List[str]:
+    """The ``exclude`` list of msg_config/record_topics.yaml (topics under a prefix that the
+    recorder leaves out by default)."""
+    from saw_ros.interface.config import config_path
+    try:
+        with open(config_path('record_topics.yaml'), encoding='utf-8') as f:
+            return [t for t in (yaml.safe_load(f) or {}).get('exclude') or [] if t]
+    except OSError:
+        return []
+
+
+def default_output(bags_dir: str, label: str) -> str:
+    stamp = datetime.datetime.now().strftime('%Y-%m-%d_%H-%M-%S')
+    return os.path.join(bags_dir, f'{stamp}_{label}')
+
+
+def message_class(type_name: str):
+    pkg, namespace, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{pkg}.{namespace}'), name)
+
+
+class LossCounter:
+    """Messages lost per topic, from gaps in the publication sequence numbers of what arrives.
+
+    A publisher numbers its messages 1, 2, 3... (the DDS writer's sequence number, in rclpy's
+    message info as ``publication_sequence_number``). Without the publisher's GID (not in
+    Jazzy's rclpy message info), a message continues the publisher whose last number is the
+    closest below its own; a number at or below every last one starts a new publisher (numbers
+    start again at 1). Sequence number 0 means the middleware does not give one: not counted.
+    """
+
+    def __init__(self):
+        self.lost: Dict[str, int] = {}
+        self._last: Dict[str, List[int]] = {}     # topic: last number of each publisher seen
+
+    def add(self, topic: str, sequence: int) -> None:
+        if not sequence:
+            return
+        lasts = self._last.get(topic)
+        if lasts is None:
+            self._last[topic] = [sequence]
+            self.lost.setdefault(topic, 0)
+            return
+        if len(lasts) == 1 and lasts[0] < sequence:            # the usual case: one publisher
+            self.lost[topic] += sequence - lasts[0] - 1
+            lasts[0] = sequence
+            return
+        best = None
+        for i, last in enumerate(lasts):
+            if last < sequence and (best is None or last > lasts[best]):
+                best = i
+        if best is None:
+            lasts.append(sequence)
+        else:
+            self.lost[topic] += sequence - lasts[best] - 1
+            lasts[best] = sequence
+
+    def total(self) -> int:
+        return sum(self.lost.values())
+
+    def text(self) -> str:
+        """``lost 0`` or ``lost 12 (/saw/camera/image_raw: 12)``: the topics that lost any."""
+        losing = ', '.join(f'{t}: {n}' for t, n in sorted(self.lost.items()) if n)
+        return f'lost {self.total()}' + (f' ({losing})' if losing else '')
+
+
+def _entry(topic: str, data: bytes, info: dict) -> tuple:
+    """What the writer thread gets for one message taken from a raw subscription."""
+    return (topic, data, info['received_timestamp'] or time.time_ns(), info['source_timestamp'],
+            info.get('publication_sequence_number', 0))
+
+
+def _duration_dict(duration) -> dict:
+    ns = getattr(duration, 'nanoseconds', 0)
+    if ns <= 0 or ns >= 2 ** 63 - 1:
+        return dict(INFINITE)
+    return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
+
+
+def _policy_name(policy) -> str:
+    name = getattr(policy, 'name', str(policy)).lower()
+    return 'unknown' if name in ('unknown', '') else name
+
+
+def offered_profile(qos) -> dict:
+    """An rclpy QoSProfile (a publisher's, from graph info) as rosbag2 stores it."""
+    history = _policy_name(qos.history)
+    return qos_profile_dict(
+        history=history, depth=qos.depth, reliability=_policy_name(qos.reliability),
+        durability=_policy_name(qos.durability), deadline=_duration_dict(qos.deadline),
+        lifespan=_duration_dict(qos.lifespan), liveliness=_policy_name(qos.liveliness),
+        liveliness_lease_duration=_duration_dict(qos.liveliness_lease_duration),
+        avoid_ros_namespace_conventions=qos.avoid_ros_namespace_conventions)
+
+
+def request_qos(offers: List, depth: int) -> QoSProfile:
+    """rosbag2's adapt_request_to_offers: reliable / transient_local only if every publisher
+    offers it, so that the subscription connects to all of them."""
+    reliable = bool(offers) and all(q.reliability == ReliabilityPolicy.RELIABLE for q in offers)
+    latched = bool(offers) and all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                                   for q in offers)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=(ReliabilityPolicy.RELIABLE if reliable
+                                   else ReliabilityPolicy.BEST_EFFORT),
+                      durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                                  else DurabilityPolicy.VOLATILE))
+
+
+class Recorder(Node):
+    def __init__(self):
+        super().__init__('recorder')
+        from saw_ros.ros.params import accept_integers_for_doubles
+        accept_integers_for_doubles(self, ['discovery_period'], {'discovery_period': 0.25})
+        try:
+            # All read once, here: read-only, so that `ros2 param set` is refused with the
+            # reason instead of reporting a change that would not happen.
+            for name, default, text in PARAMETERS:
+                self.declare_parameter(name, default if default is not None else (
+                    default_excluded() or ['']), ParameterDescriptor(
+                        description=f'{text} (start-up only)', read_only=True))
+        except ParameterException as exc:
+            raise NodeFailure(f'invalid parameters: {exc}') from None
+        bad = [f'{n} = {self.get_parameter(n).value} must be > 0'
+               for n in ('queue_depth', 'chunk_size', 'discovery_period')
+               if not self.get_parameter(n).value > 0]
+        if bad:
+            raise NodeFailure(f'invalid parameters: {", ".join(bad)}')
+
+        topics = [t for t in self.get_parameter('topics').value if t]
+        if topics:
+            self._topics, self._prefixes = topics, []
+        else:
+            self._topics, self._prefixes = default_topics()
+        self._excluded = {t for t in self.get_parameter('exclude_topics').value if t}
+        output = self.get_parameter('output').value or default_output(
+            self.get_parameter('bags_dir').value, self.get_parameter('label').value)
+        try:
+            check_definitions()  # before creating anything: else one line saying what to source
+            self.bag = BagWriter(output, chunk_size=int(self.get_parameter('chunk_size').value),
+                                 compression=self.get_parameter('compression').value)
+        except (BagWriteError, UnknownMessageType, ValueError) as exc:
+            raise NodeFailure(f'refusing to record: {exc}') from None
+        self._depth = int(self.get_parameter('queue_depth').value)
+        self._queue: 'queue.SimpleQueue' = queue.SimpleQueue()
+        self._subs: Dict[str, object] = {}
+        self._unmatched: Dict[str, tuple] = {}   # topic: (type, subscribed at), not matched yet
+        self.received = 0
+        self.losses = LossCounter()     # fed by the writer thread
+        self._write_error = None
+        self._closed = False
+        self._writer = threading.Thread(target=self._write_loop, name='bag-writer', daemon=True)
+        self._writer.start()
+        # Large messages (camera images) arrive on a DDS participant of their own: their bursts
+        # of fragments then never delay the receipt and acknowledgement of the 1 kHz streams,
+        # whose publishers keep only a short history (measured: a shared participant lost
+        # 1-5 % of each 1 kHz stream while 60 fps 1280x720 images were recorded).
+        self._large = None
+        self._large_thread = None
+        self.get_logger().info(
+            f'recording to {self.bag.directory} '
+            f'({", ".join(self._topics + [p + "*" for p in self._prefixes])}'
+            + (f'; not {", ".join(sorted(self._excluded))}' if self._excluded and self._prefixes
+               else '') + ')')
+        self._discover()
+        self._timer = self.create_timer(float(self.get_parameter('discovery_period').value),
+                                        self._discover)
+        self._match_timer = self.create_timer(0.02, lambda: self._unmatched and
+                                              self._report_matched())
+
+    # ---- discovery
+    def _wanted(self, name: str) -> bool:
+        return name in self._topics or (name not in self._excluded and any(
+            name.startswith(p) for p in self._prefixes))
+
+    def _discover(self) -> None:
+        if self._write_error is not None:
+            raise NodeFailure(f'writing {self.bag.directory} failed: {self._write_error}')
+        for name, types in self.get_topic_names_and_types():
+            if name in self._subs or not self._wanted(name) or not types:
+                continue
+            offers = [info.qos_profile for info in self.get_publishers_info_by_topic(name)]
+            if not offers:
+                continue  # only subscribers so far: wait for a publisher to adapt QoS to
+            type_name = types[0]
+            try:
+                msg_type = message_class(type_name)
+            except (ImportError, AttributeError, ValueError):
+                self.get_logger().warn(f'{name}: type {type_name} unknown here; not recorded')
+                self._subs[name] = None
+                continue
+            self._queue.put(('topic', name, type_name, [offered_profile(q) for q in offers]))
+            node = self._large_node() if type_name in LARGE_TYPES else self
+            self._subs[name] = self._subscribe(node, name, msg_type,
+                                               request_qos(offers, self._depth))
+            self._unmatched[name] = (type_name, time.monotonic())
+        self._report_matched()
+
+    def _report_matched(self) -> None:
+        """Log 'recording <topic>' once the subscription has matched a publisher: from then on
+        nothing published on it is missed (scripts and tests wait for this line)."""
+        for name, (type_name, since) in list(self._unmatched.items()):
+            holder = self._subs.get(name)
+            if holder is None or holder['sub'].get_publisher_count() < 1:
+                continue
+            del self._unmatched[name]
+            self.get_logger().info(f'recording {name} [{type_name}] '
+                                   f'(matched after {time.monotonic() - since:.2f} s)')
+
+    def _large_node(self):
+        if self._large is None:
+            import rclpy
+            from rclpy.context import Context
+            from rclpy.executors import SingleThreadedExecutor
+            context = Context()
+            rclpy.init(context=context)
+            node = Node('recorder_large', context=context)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            self._large = (context, node, executor)
+            self._large_thread = threading.Thread(target=self._spin_large, name='large-spin',
+                                                  daemon=True)
+            self._large_thread.start()
+        return self._large[1]
+
+    def _spin_large(self):
+        context, _, executor = self._large
+        try:
+            while context.ok() and not self._closed:
+                executor.spin_once(timeout_sec=0.1)
+        except Exception:  # noqa: BLE001  (shut down while spinning)
+            pass
+
+    def _subscribe(self, node, name, msg_type, qos):
+        put = self._queue.put
+        holder = {}
+
+        def on_message(data, info):
+            put(_entry(name, data, info))
+            self.received += 1
+            # Take everything else already waiting: one executor round per burst, not per message.
+            sub = holder['sub']
+            handle = sub.handle
+            taken = 0
+            with handle:
+                while taken < 10000:
+                    got = handle.take_message(msg_type, True)
+                    if got is None:
+                        break
+                    put(_entry(name, *got))
+                    taken += 1
+            self.received += taken
+
+        holder['sub'] = node.create_subscription(msg_type, name, on_message, qos, raw=True)
+        holder['type'] = msg_type
+        return holder
+
+    def _drain(self) -> None:
+        """Take what the subscriptions already hold (called once spinning has stopped)."""
+        for name, holder in self._subs.items():
+            if holder is None:
+                continue
+            try:
+                with holder['sub'].handle as handle:
+                    while True:
+                        got = handle.take_message(holder['type'], True)
+                        if got is None:
+                            break
+                        self._queue.put(_entry(name, *got))
+                        self.received += 1
+            except Exception as exc:  # noqa: BLE001  (context gone: nothing more to take)
+                self.get_logger().debug(f'{name}: drain stopped: {exc}')
+
+    # ---- writer thread
+    def _write_loop(self) -> None:
+        bag = self.bag
+        get = self._queue.get
+        count = self.losses.add
+        while True:
+            item = get()
+            if item is _STOP:
+                return
+            if item[0] != 'topic':
+                count(item[0], item[4])
+            if self._write_error is not None:
+                continue
+            try:
+                if item[0] == 'topic':
+                    bag.add_topic(item[1], item[2], item[3])
+                else:
+                    bag.write(item[0], item[1], item[2], item[3] or item[2], item[4] or 0)
+            except Exception as exc:  # noqa: BLE001  (disk full...): reported by the node
+                self._write_error = exc
+
+    def close(self) -> None:
+        """Finish the bag: drain subscriptions, let the writer thread empty its queue, write
+        the summary and metadata.yaml. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._large_thread is not None:
+            self._large_thread.join(2.0)
+        self._drain()
+        self._queue.put(_STOP)
+        self._writer.join()
+        lost = {t: self.losses.lost.get(t, 0) for t in self._counts()}
+        self.bag.custom_data = dict(self.bag.custom_data or {}, **{
+            'saw_ros.lost_messages': json.dumps(lost, sort_keys=True)})
+        self.bag.close()
+        counts = ', '.join(f'{t}: {n}' for t, n in self._counts().items())
+        done = (f'bag {self.bag.directory} finished: {self.bag.message_count} messages '
+                f'({counts}); {self.losses.text()}')
+        warning = None
+        if self.losses.total():
+            warning = (f'{self.losses.text()}: messages lost before they were recorded (gaps '
+                       f'in the publishers\' sequence numbers); the recorder or the machine '
+                       f'did not keep up: record fewer topics (the raw camera frames above all) '
+                       f'or raise queue_depth')
+        if self.context.ok():
+            self.get_logger().info(done)
+            if warning:
+                self.get_logger().warning(warning)
+        else:  # after Ctrl-C the context is gone and /rosout with it
+            print(f'[recorder] {done}', file=sys.stderr, flush=True)
+            if warning:
+                print(f'[recorder] WARNING: {warning}', file=sys.stderr, flush=True)
+        if self._write_error is not None:
+            self.get_logger().error(f'writing failed: {self._write_error}')
+        if self._large is not None:
+            import rclpy
+            self._large[2].shutdown(0.5)
+            self._large[1].destroy_node()
+            rclpy.try_shutdown(context=self._large[0])
+
+    def _counts(self):
+        meta = self.bag.metadata()
+        return {e['topic_metadata']['name']: e['message_count']
+                for e in meta['topics_with_message_count']}
+
+
+def main(args=None) -> int:
+    return run_node(Recorder, args=args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,327 @@
+"""The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time.
+
+Steps ``core.Simulator`` and publishes every step exactly once (stamps = simulated time, 1 ms
+apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts, /saw/contact_wrench and
+/saw/joint_states. docs/simulator.md lists the topics, frames, QoS and parameters.
+
+Time. A wall-clock timer wakes the node every few milliseconds; each wake-up runs as many steps
+as are due at ``real_time_factor`` (steps = rtf * elapsed wall time / dt), not one step per tick:
+rclpy does not catch up missed timer ticks. When the machine cannot keep up the simulation falls
+behind real time (never skipping or repeating a step) and says so, at most every few seconds.
+``real_time_factor`` 0 runs as fast as the node can step and publish. Either way a wake-up
+works for at most ``BATCH_BUDGET`` of wall time (and ``MAX_BATCH`` steps) so that parameter
+changes and ~/reset are served in between.
+
+Loss. The node publishes every step once, in order, reliably. Reliable KEEP_LAST queues do not
+slow the publisher down, though: a subscriber that cannot keep up with the rate (rtf x 6000
+messages/s) loses the oldest messages of its queue. Publisher acknowledgements cannot prevent
+that (a KEEP_LAST reader acknowledges what it then drops, and Fast DDS acknowledges in bursts,
+0-2 s late), so there is no back-pressure: pick a real_time_factor the subscribers sustain
+(``saw-ros bench`` measures it), not 0, when every message must arrive.
+
+Reset. ``~/reset`` puts the robot back in its initial state (centred in the gap, at rest, phase 0,
+no contact memory) with the current parameters; simulated time goes on (stamps and /clock never
+go backwards, so use_sim_time consumers, TF buffers and bags are not disturbed). ``duration``
+counts simulated time since the node started, resets included.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, PointCloud2
+from std_srvs.srv import Trigger
+
+from saw_ros.ros import conversions as conv
+from saw_ros.core.dynamics import DivergenceError, Simulator
+from saw_ros.core.params import ParameterError
+from saw_ros.ros.params import ScenarioParameters, accept_integers_for_doubles
+from saw_ros.ros.runtime import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node, spin_node, with_depth
+
+# What the node publishes every step, in this order (tests and benchmarks subscribe from here).
+TOPICS = {'/clock': Clock, '/saw/pose': PoseStamped, '/saw/twist': TwistStamped,
+          '/saw/contacts': PointCloud2, '/saw/contact_wrench': WrenchStamped,
+          '/saw/joint_states': JointState}
+TICK_PERIOD = 0.005          # s of wall time between wake-ups
+BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
+MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
+# Publishers keep the contract's policies (STREAM_QOS, CLOCK_QOS: reliable, volatile) with a
+# deeper history, 1000 = 1 s at 1 kHz: a reliable reader that falls behind can only be repaired
+# from the writer's history, and Clock, a plain type, is handed to same-host readers straight
+# from it (Fast DDS data sharing), so a reader further behind than the writer's depth loses
+# /clock ticks however deep its own queue is. (Depth does not affect QoS compatibility.)
+PUBLISHER_DEPTH = 1000
+
+MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
+WARN_EVERY = 5.0             # s of wall time between "falling behind" warnings
+
+# Names the simulator takes from its own parameters instead of the Scenario's.
+EXCLUDED = ('integration.duration',)        # replaced by `duration` (0 = until stopped)
+FROZEN = {
+    'robot': 'the robot geometry is fixed for a run (tip tables are built from it); '
+             'restart the node with the new value',
+    'integration.dt': 'the time step is fixed for a run (stamps are steps * dt); restart the '
+                      'node with the new value',
+}
+
+
+class SimulatorNode(Node):
+    """One SAW robot between two compliant surfaces, stepped in (scaled) real time."""
+
+    def __init__(self, **kwargs):
+        super().__init__('simulator', **kwargs)
+        try:
+            self.params = ScenarioParameters(self, exclude=EXCLUDED, frozen=FROZEN,
+                                             on_change=self._on_scenario)
+            self.sim = Simulator(self.params.scenario)
+            accept_integers_for_doubles(self, ('real_time_factor', 'duration'),
+                                        {'real_time_factor': 1.0, 'duration': 0.0})
+            self.declare_parameter('real_time_factor', 1.0, ParameterDescriptor(
+                description='simulated seconds per wall-clock second; 0 = as fast as possible',
+                additional_constraints='>= 0'))
+            self.declare_parameter('duration', 0.0, ParameterDescriptor(
+                description='simulated time after which the node exits by itself (code 0), s; '
+                            '0 = run until stopped', additional_constraints='>= 0'))
+            self.declare_parameter('wait_for_subscribers', 0, ParameterDescriptor(
+                description='before the first step, wait until every topic has at least this '
+                            'many subscribers (tests, benchmarks, recordings that must see every '
+                            'step); 0 = start at once', additional_constraints='>= 0'))
+            self._rtf = self._check_rtf(self.get_parameter('real_time_factor').value)
+            self._duration = self._check_duration(self.get_parameter('duration').value)
+            self.dt_ns = conv.dt_nanoseconds(self.params.scenario.integration.dt)
+        except (ParameterError, ParameterException, ValueError) as exc:
+            # ParameterException: rclpy refused a start-up value (wrong type, outside the
+            # descriptor's range) before the Scenario could check it.
+            raise NodeFailure(f'invalid parameters: {exc}') from exc
+        self._wait_subscribers = int(self.get_parameter('wait_for_subscribers').value)
+        self.started = self._wait_subscribers <= 0
+        self.add_on_set_parameters_callback(self._validate_own)
+        self.add_post_set_parameters_callback(self._apply_own)
+
+        scenario = self.params.scenario
+        self.dt = scenario.integration.dt
+        self._omega = 2.0 * math.pi * scenario.frequency
+        self._joints = conv.JointTable(scenario.robot)
+        self._joint_names = conv.joint_names(scenario.robot.wave_links)
+
+        self._publishers_all = tuple(
+            self.create_publisher(msg_type, topic, with_depth(
+                CLOCK_QOS if topic == '/clock' else STREAM_QOS, PUBLISHER_DEPTH))
+            for topic, msg_type in TOPICS.items())
+        (self._pub_clock, self._pub_pose, self._pub_twist, self._pub_contacts, self._pub_wrench,
+         self._pub_joints) = self._publishers_all
+        self._contacts_cdr = conv.ContactsCdr()
+        self._joints_cdr = conv.JointStateCdr(self._joint_names)
+
+        self.create_service(Trigger, '~/reset', self._on_reset)
+
+        self.steps = 0                  # steps published since start = stamp / dt (monotonic)
+        self.finished = False
+        self._behind_since_warning = 0  # steps run late since the last warning
+        self._last_warning = -math.inf
+        self._rebase(time.monotonic())
+        self._timer = self.create_timer(TICK_PERIOD, self._tick)
+        if not self.started:
+            self.get_logger().info(f'waiting for {self._wait_subscribers} subscriber(s) on every '
+                                   f'topic before the first step')
+        self.get_logger().info(
+            f'simulating at {1.0 / self.dt:g} Hz of simulated time, real_time_factor '
+            f'{self._rtf:g}, duration {self._duration:g} s (0 = until stopped), helix '
+            f'{scenario.frequency:g} Hz, slope {math.degrees(scenario.scenario.slope):g} deg')
+
+    # -- parameters ----------------------------------------------------------------------------
+    @staticmethod
+    def _check_rtf(value) -> float:
+        if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise ParameterError(f'real_time_factor = {value!r} is invalid: must be a finite '
+                                 f'number >= 0 (0 = as fast as possible)')
+        return float(value)
+
+    @staticmethod
+    def _check_duration(value) -> float:
+        if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise ParameterError(f'duration = {value!r} is invalid: must be a finite number of '
+                                 f'seconds >= 0 (0 = run until stopped)')
+        return float(value)
+
+    def _validate_own(self, parameters) -> SetParametersResult:
+        for p in parameters:
+            if p.name == 'wait_for_subscribers':
+                reason = 'wait_for_subscribers only applies at start-up'
+                return SetParametersResult(successful=False, reason=reason)
+            try:
+                if p.name == 'real_time_factor':
+                    self._check_rtf(p.value)
+                elif p.name == 'duration':
+                    self._check_duration(p.value)
+            except ParameterError as exc:
+                self.get_logger().warning(f'parameter change refused: {exc}')
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_own(self, parameters) -> None:
+        for p in parameters:
+            if p.name == 'real_time_factor':
+                self._rtf = float(p.value)
+                self._rebase(time.monotonic())
+            elif p.name == 'duration':
+                self._duration = float(p.value)
+
+    def _on_scenario(self, scenario) -> None:
+        self.sim.set_scenarios([scenario])
+        self._omega = 2.0 * math.pi * scenario.frequency
+        self.get_logger().info(
+            f'parameters changed at t = {self.steps * self.dt:.3f} s: helix '
+            f'{scenario.frequency:g} Hz, slope {math.degrees(scenario.scenario.slope):g} deg, '
+            f'external force {scenario.scenario.external_force:g} N, mu '
+            f'{scenario.surface.friction_coefficient:g}')
+
+    # -- services ------------------------------------------------------------------------------
+    def _on_reset(self, request, response):
+        self.sim.reset()
+        t = self.steps * self.dt
+        response.success = True
+        response.message = (f'robot reset to its initial state at t = {t:.3f} s; simulated '
+                            f'time goes on')
+        self.get_logger().info(response.message)
+        return response
+
+    # -- stepping ------------------------------------------------------------------------------
+    def _rebase(self, now: float) -> None:
+        """Schedule the next steps from ``now``: step k is due at now + (k - steps) dt / rtf."""
+        self._anchor_wall = now
+        self._anchor_steps = self.steps
+
+    def _end_steps(self) -> int:
+        return int(round(self._duration / self.dt)) if self._duration > 0 else -1
+
+    def _tick(self) -> None:
+        if self.finished:
+            return
+        now = time.monotonic()
+        if not self.started:
+            if min(p.get_subscription_count() for p in self._publishers_all) < \
+                    self._wait_subscribers:
+                return
+            self.started = True
+            self._rebase(now)
+            self.get_logger().info('subscribers present: starting')
+        if self._rtf > 0.0:
+            due = self._anchor_steps + int((now - self._anchor_wall) * self._rtf / self.dt)
+            todo = due - self.steps
+            if todo * self.dt / self._rtf > MAX_LAG:
+                self._fell_behind(now, todo)
+        else:
+            todo = MAX_BATCH
+        end = self._end_steps()
+        if end >= 0:
+            todo = min(todo, end - self.steps)
+        todo = min(todo, MAX_BATCH)
+        deadline = now + BATCH_BUDGET
+        for _ in range(todo):
+            self.step_and_publish()
+            if time.monotonic() > deadline:
+                break
+        if end >= 0 and self.steps >= end:
+            self.finished = True
+            self.get_logger().info(f'duration {self._duration:g} s reached after {self.steps} '
+                                   f'steps: stopping')
+
+    def _fell_behind(self, now: float, todo: int) -> None:
+        """Too far behind schedule: run on from here (slower than real time), never skip."""
+        self._behind_since_warning += todo
+        self._rebase(now)
+        if now - self._last_warning >= WARN_EVERY:
+            self.get_logger().warning(
+                f'falling behind real time at t = {self.steps * self.dt:.3f} s: '
+                f'{self._behind_since_warning * self.dt:.3f} s of simulated time ran late '
+                f'since the last warning (real_time_factor {self._rtf:g} is more than this '
+                f'machine sustains); every step is still published')
+            self._last_warning = now
+            self._behind_since_warning = 0
+
+    def step_and_publish(self) -> None:
+        """One physics step, then its six messages, all stamped (steps + 1) * dt."""
+        sim = self.sim
+        try:
+            sim.step()
+        except DivergenceError as exc:
+            self.finished = True
+            raise NodeFailure(f'stopping, nothing more is published: {exc}') from exc
+        contacts = sim.contacts
+        q = sim.q[:, 0]
+        if not math.isfinite(q.sum() + contacts.normal.sum() + contacts.tangential.sum()):
+            self.finished = True
+            raise NodeFailure(f'simulation diverged at t = {sim.t:.3f} s: non-finite state or '
+                              f'forces; stopping, nothing more is published')
+        self.steps += 1
+        ns = self.steps * self.dt_ns
+        x, y, theta, vx, vy, w = q.tolist()
+        points = conv.contact_points(sim.tip_positions[0], contacts.normal[0],
+                                     contacts.tangential[0], contacts.touching[0],
+                                     contacts.slipping[0])
+        fx, fy, mz = conv.contact_wrench(points, x, y, theta)
+        angles, rates = self._joints.at(float(sim.phase[0]), self._omega)
+        # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
+        self._pub_clock.publish(conv.clock_cdr(ns))
+        self._pub_pose.publish(conv.pose_cdr(x, y, theta, ns))
+        self._pub_twist.publish(conv.twist_cdr(vx, vy, w, ns))
+        self._pub_contacts.publish(self._contacts_cdr(points, ns))
+        self._pub_wrench.publish(conv.wrench_cdr(fx, fy, mz, ns))
+        self._pub_joints.publish(self._joints_cdr(float(sim.phase[0]), self._omega, angles,
+                                                  rates, ns))
+
+    def close(self) -> None:
+        """Say how many steps went out (every topic got each of them once; tests compare with
+        recordings). run_node then waits for subscribers to acknowledge them (common.flush)."""
+        self.get_logger().info(f'stopped after {self.steps} steps (t = '
+                               f'{self.steps * self.dt:.3f} s)')
+
+
+def spin(node: SimulatorNode) -> None:
+    """Spin until stopped (SIGINT, SIGTERM: between two batches of steps, never inside one) or,
+    with ``duration`` set, until the run is complete."""
+    from rclpy.executors import SingleThreadedExecutor
+    spin_node(node, until=lambda: node.finished,
+              executor=SingleThreadedExecutor(context=node.context))
+
+
+OWN_PARAMETERS = (
+    ('real_time_factor', 1.0, 'simulated seconds per wall-clock second; 0 = as fast as possible'),
+    ('duration', 0.0, 'seconds of simulated time, then the node exits with code 0; 0 = run until '
+                      'stopped'),
+    ('wait_for_subscribers', 0, 'before the first step, wait until every topic has at least '
+                                'this many subscribers; 0 = start at once'),
+)
+YAML_HEADER = """\
+Parameters of the saw_ros simulator node:
+  python -m saw_ros.ros.nodes.simulator --ros-args --params-file msg_config/simulator.yaml
+  (ros2 run saw_ros simulator --ros-args --params-file ... on a ROS 2 install)
+Defaults = the paper's experimental set-up (Shachaf, Katz, Zarrouk, Biomimetics 2023;
+shared/docs/model.md section 8). SI units; each comment gives the allowed range and unit.
+Doubles need a decimal point (0.0, not 0). robot.* and integration.dt cannot change while the
+node runs; every other parameter can, and takes effect at the next step.
+Generated by: python -m saw_ros.ros.nodes.simulator --write-yaml msg_config/simulator.yaml"""
+
+
+def write_yaml(path) -> None:
+    from saw_ros.ros.params import yaml_text
+    with open(path, 'w') as f:
+        f.write(yaml_text('simulator', YAML_HEADER, OWN_PARAMETERS, exclude=EXCLUDED))
+
+
+def main(args=None) -> int:
+    return run_node(SimulatorNode, args=args, spin=spin)
+
+
+if __name__ == '__main__':
+    import sys
+    if len(sys.argv) == 3 and sys.argv[1] == '--write-yaml':
+        write_yaml(sys.argv[2])
+        raise SystemExit(0)
+    raise SystemExit(main())

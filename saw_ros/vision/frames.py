@@ -1,0 +1,339 @@
+"""Side-view renderer: what a level camera beside the track sees of the robot between its surfaces.
+
+Drawn, back to front: a textured wall (static), the two rigid boards, the two silicone layers with
+a dent wherever a link tip presses in (depth = the tip's penetration, width about a link), the
+robot (spine, base link, wave links from down tip to up tip, head, tail plate) and two pink
+markers on the body's side: front on the head, back on the tail plate, both on the body axis and
+symmetric about the COM by default, so that their midpoint is the COM.
+
+Realism (``RenderOptions``): motion blur (average of ``blur_samples`` sub-frames spread over an
+exposure CENTRED on the frame time, so a blurred marker's centroid is its position at the frame
+time), brightness factor (saturating), Gaussian sensor noise (sigma in grey levels, from a
+precomputed pool at random offsets: drawing 2.7 M normal numbers per frame would cost more than
+the whole render), and a textured background.
+
+Frames are BGR uint8 (OpenCV order). Everything drawn is anti-aliased with sub-pixel vertices;
+the markers are drawn from their exact coverage so that their intensity centroid is where they
+are (``marker_pixels`` gives it, for tests and benchmarks).
+
+Footage that looks less like this (``scene.SceneOptions``): clutter on the wall or in front of the
+robot, a lighting gradient and flicker, JPEG compression; and, with a camera that has a lens
+distortion, the ideal image warped as the lens would (after blur and lighting, before the
+sensor noise). Order: draw (blur) -> brightness and lighting -> lens -> noise -> JPEG.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Iterable, NamedTuple, Optional, Sequence
+
+import cv2
+import numpy as np
+
+from saw_ros.core.kinematics import base_link_end, hinge_x, link_geometry
+from saw_ros.core.params import RobotParams
+from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.scene import SceneOptions, distortion_maps, draw_clutter, gradient_map, jpeg
+
+SHIFT = 4                       # fixed-point bits for cv2 sub-pixel vertices
+ONE = 1 << SHIFT
+
+# Colours, BGR. Everything but the markers is neutral (R + B = 2 G), which the tracker's pinkness
+# measure R + B - 2 G maps to zero.
+PINK = (170, 60, 255)           # hot pink marker, RGB (255, 60, 170), OpenCV hue 163
+BODY = (70, 70, 70)
+SPINE = (45, 45, 45)
+LINK = (205, 205, 205)
+LINK_EDGE = (120, 120, 120)
+BASE_LINK = (150, 150, 150)
+SILICONE = (200, 205, 210)      # R 210, G 205, B 200: neutral
+BOARD = (70, 110, 150)          # wood, R 150, G 110, B 70: neutral
+WALL = 175                      # grey level of the wall behind
+
+
+class RobotPose(NamedTuple):
+    """Where the robot is: COM (x, y) in the surface frame (m), pitch theta (rad), wave phase."""
+
+    x: float
+    y: float
+    theta: float
+    phase: float
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    noise: float = 0.0              # grey levels, sigma of the sensor noise (0 = none)
+    exposure: float = 0.0           # s, exposure time for motion blur (0 = none)
+    blur_samples: int = 5           # sub-frames averaged over the exposure
+    brightness: float = 1.0         # factor on the scene's intensity (saturates at 255)
+    texture: bool = True            # textured wall behind the robot (False: flat grey)
+    seed: int = 0                   # random seed of texture and noise
+    marker_radius: float = 0.006    # m
+    front_marker: float = 0.16      # m, body x of the front marker (on the body axis, y = 0)
+    back_marker: float = -0.16      # m, body x of the back marker
+    silicone_thickness: float = 0.012   # m
+    board_thickness: float = 0.018      # m
+
+    def __post_init__(self):
+        for name in ('noise', 'exposure'):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f'render {name} = {getattr(self, name)!r} must be >= 0')
+        if not self.brightness > 0:
+            raise ValueError(f'render brightness = {self.brightness!r} must be > 0')
+        if self.blur_samples < 1:
+            raise ValueError(f'render blur_samples = {self.blur_samples!r} must be >= 1')
+        if not self.marker_radius > 0:
+            raise ValueError(f'render marker_radius = {self.marker_radius!r} must be > 0')
+
+
+class _GeometryTable:
+    """Body-frame link geometry tabulated over one wave cycle (linear interpolation)."""
+
+    def __init__(self, robot: RobotParams, samples: int = 1024):
+        phases = np.linspace(0.0, 2.0 * np.pi, samples + 1)
+        geo = link_geometry(robot, phases)
+        self.scale = samples / (2.0 * np.pi)
+        self.samples = samples
+        self.centres = geo.centres
+        self.direction = np.exp(1j * geo.angles)
+        self.base_end = base_link_end(robot, geo.base_angle)
+        self.up = geo.up_tips
+        self.down = geo.down_tips
+
+    def at(self, phase: float):
+        u = (phase % (2.0 * np.pi)) * self.scale
+        i = min(int(u), self.samples - 1)
+        w = u - i
+
+        def lerp(a):
+            return a[i] + w * (a[i + 1] - a[i])
+        d = lerp(self.direction)
+        return lerp(self.centres), d / np.abs(d), lerp(self.base_end), lerp(self.up), \
+            lerp(self.down)
+
+
+def _rect(x0, x1, y0, y1):
+    return np.array([x0 + 1j * y0, x1 + 1j * y0, x1 + 1j * y1, x0 + 1j * y1])
+
+
+class Renderer:
+    """Renders frames of one robot between its surfaces, seen by ``camera``."""
+
+    def __init__(self, robot: RobotParams, gap: float, camera: CameraModel,
+                 options: RenderOptions = RenderOptions(), scene: SceneOptions = SceneOptions()):
+        self.robot, self.gap, self.camera, self.options = robot, float(gap), camera, options
+        self.scene = scene
+        self._table = _GeometryTable(robot)
+        self._rng = np.random.default_rng(options.seed)
+        L = robot.length
+        self._hinge = hinge_x(robot)
+        half = min(0.013, 0.45 * gap)
+        self._head = _rect(self._hinge, L / 2.0, -half, half)
+        self._spine = _rect(-L / 2.0, self._hinge, -0.003, 0.003)
+        self._tail = _rect(-L / 2.0, -L / 2.0 + 0.03, -0.012, 0.012)
+        self._link_half = 0.3 * robot.link
+        self._background = self._make_background()
+        self._frame = np.empty_like(self._background)
+        self._noise = self._make_noise() if options.noise > 0 else None
+        self._accum = None
+        self._gradient = gradient_map(camera, scene) if scene.gradient > 0 else None
+        self._lens = distortion_maps(camera) if camera.distorted else None
+
+    # -- static parts --------------------------------------------------------------------------
+    def _make_background(self) -> np.ndarray:
+        cam, opt = self.camera, self.options
+        h, w = cam.height, cam.width
+        if opt.texture:
+            rng = np.random.default_rng(opt.seed + 1)
+            coarse = rng.normal(0.0, 1.0, (h // 32 + 2, w // 32 + 2)).astype(np.float32)
+            coarse = cv2.resize(coarse, (w, h), interpolation=cv2.INTER_CUBIC)
+            fine = cv2.GaussianBlur(rng.normal(0.0, 1.0, (h, w)).astype(np.float32), (0, 0), 1.5)
+            grey = WALL + 18.0 * coarse + 10.0 * fine
+            grey = np.clip(grey, 0, 255).astype(np.uint8)
+        else:
+            grey = np.full((h, w), WALL, np.uint8)
+        img = cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
+        x0, x1 = cam.visible_x_range(0.1)
+        t, b = opt.silicone_thickness, opt.board_thickness
+        g = self.gap
+        for y0, y1 in ((-t - b, -t), (g + t, g + t + b)):
+            self._fill(img, [_rect(x0, x1, y0, y1)], BOARD)
+        return img
+
+    def _make_noise(self) -> np.ndarray:
+        """A pool of noise, split into its positive and negative parts for saturating adds."""
+        cam = self.camera
+        pad = 32
+        n = self._rng.normal(0.0, self.options.noise, (cam.height + pad, cam.width + pad, 3))
+        n = np.rint(n)
+        return (np.clip(n, 0, 255).astype(np.uint8), np.clip(-n, 0, 255).astype(np.uint8))
+
+    # -- drawing helpers -----------------------------------------------------------------------
+    def _fixed(self, surface_points) -> np.ndarray:
+        p = self.camera.to_pixels(surface_points)
+        return np.stack([np.rint(p.real * ONE), np.rint(p.imag * ONE)], axis=-1).astype(np.int32)
+
+    def _fill(self, img, polygons: Sequence[np.ndarray], colour) -> None:
+        for poly in polygons:
+            cv2.fillConvexPoly(img, self._fixed(poly), colour, cv2.LINE_AA, SHIFT) \
+                if len(poly) <= 4 else \
+                cv2.fillPoly(img, [self._fixed(poly)], colour, cv2.LINE_AA, SHIFT)
+
+    def _silicone(self, img, x0, x1, down_tips, up_tips) -> None:
+        """Both silicone layers, dented where tips press in (penetration > 0)."""
+        t = self.options.silicone_thickness
+        width = 0.6 * self.robot.link           # half-width of a dent, m
+        for tips, level, sign in ((down_tips, 0.0, 1.0), (up_tips, self.gap, -1.0)):
+            pen = sign * (level - tips.imag)     # > 0 inside the surface
+            pressed = pen > 0
+            edge = [x0 + 1j * level]
+            if pressed.any():
+                tx, depth = tips.real[pressed], pen[pressed]
+                xs = np.sort(np.concatenate([np.linspace(a - width, a + width, 9) for a in tx]))
+                d = (xs[:, None] - tx[None, :]) / width
+                bump = np.where(np.abs(d) < 1.0, np.cos(0.5 * np.pi * d) ** 2, 0.0)
+                profile = (bump * depth[None, :]).max(axis=1)
+                edge.extend(xs + 1j * (level - sign * profile))
+            edge.append(x1 + 1j * level)
+            back = level - sign * t
+            poly = np.array(edge + [x1 + 1j * back, x0 + 1j * back])
+            self._fill(img, [poly], SILICONE)
+
+    def _marker(self, img, centre: complex) -> None:
+        """A pink disc drawn from its exact (1-pixel ramp) coverage."""
+        self._disc(img, centre, self.options.marker_radius * self.camera.scale, PINK)
+
+    @staticmethod
+    def _disc(img, centre: complex, radius: float, colour) -> None:
+        """A disc (radius px, BGR colour) drawn from its exact (1-pixel ramp) coverage."""
+        h, w = img.shape[:2]
+        u0 = int(math.floor(centre.real - radius - 1))
+        u1 = int(math.ceil(centre.real + radius + 2))
+        v0 = int(math.floor(centre.imag - radius - 1))
+        v1 = int(math.ceil(centre.imag + radius + 2))
+        u0c, u1c, v0c, v1c = max(u0, 0), min(u1, w), max(v0, 0), min(v1, h)
+        if u0c >= u1c or v0c >= v1c:
+            return
+        uu = np.arange(u0c, u1c) - centre.real
+        vv = np.arange(v0c, v1c) - centre.imag
+        dist = np.sqrt(uu[None, :] ** 2 + vv[:, None] ** 2)
+        a = np.clip(radius + 0.5 - dist, 0.0, 1.0)[..., None].astype(np.float32)
+        patch = img[v0c:v1c, u0c:u1c]
+        patch[...] = (patch * (1.0 - a) + np.array(colour, np.float32) * a + 0.5).astype(np.uint8)
+
+    # -- public --------------------------------------------------------------------------------
+    def marker_surface(self, pose: RobotPose):
+        """(front, back) marker centres in the surface frame (complex, m): the ground truth."""
+        com = complex(pose.x, pose.y)
+        rot = complex(math.cos(pose.theta), math.sin(pose.theta))
+        return com + rot * self.options.front_marker, com + rot * self.options.back_marker
+
+    def _ideal_pixels(self, pose: RobotPose):
+        front, back = self.marker_surface(pose)
+        p = self.camera.to_pixels(np.array([front, back]))
+        return complex(p[0]), complex(p[1])
+
+    def marker_pixels(self, pose: RobotPose):
+        """(front, back) marker centres in the image, pixels (complex u + i v); through the lens
+        distortion when the camera has one."""
+        p = self.camera.distort(np.array(self._ideal_pixels(pose)))
+        return complex(p[0]), complex(p[1])
+
+    def draw(self, pose: RobotPose, out: np.ndarray, hidden: Iterable[str] = (),
+             t: float = 0.0) -> np.ndarray:
+        """Draw the scene at one instant (time t for moving clutter) into ``out``, ideal (no
+        lens), no blur, brightness or noise."""
+        np.copyto(out, self._background)
+        clutter = self.scene.clutter
+        if clutter:
+            draw_clutter(out, self.camera, clutter, t, 'wall', self._disc)
+        centres, direction, base_end, up, down = self._table.at(pose.phase)
+        com = complex(pose.x, pose.y)
+        rot = complex(math.cos(pose.theta), math.sin(pose.theta))
+        x0, x1 = self.camera.visible_x_range(0.1)
+        self._silicone(out, x0, x1, com + rot * down, com + rot * up)
+
+        def world(points):
+            return com + rot * points
+        self._fill(out, [world(self._spine)], SPINE)
+        hinge = complex(self._hinge, 0.0)
+        bar = 0.002j * (hinge - base_end) / abs(hinge - base_end)
+        self._fill(out, [world(np.array([hinge + bar, base_end + bar, base_end - bar,
+                                         hinge - bar]))], BASE_LINK)
+        along = self._link_half * direction
+        normal = 1j * direction * self.robot.tip_distance
+        corners = np.stack([centres + along + normal, centres - along + normal,
+                            centres - along - normal, centres + along - normal], axis=-1)
+        pix = self._fixed(world(corners))
+        for poly in pix:
+            cv2.fillConvexPoly(out, poly, LINK, cv2.LINE_AA, SHIFT)
+        cv2.polylines(out, list(pix), True, LINK_EDGE, 1, cv2.LINE_AA, SHIFT)
+        self._fill(out, [world(self._head), world(self._tail)], BODY)
+        hidden = set(hidden)
+        front, back = self._ideal_pixels(pose)
+        if 'front' not in hidden:
+            self._marker(out, front)
+        if 'back' not in hidden:
+            self._marker(out, back)
+        if clutter:
+            draw_clutter(out, self.camera, clutter, t, 'front', self._disc)
+        return out
+
+    def render(self, pose: RobotPose, hidden: Iterable[str] = (),
+               pose_at: Optional[Callable[[float], RobotPose]] = None,
+               t: Optional[float] = None) -> np.ndarray:
+        """One finished frame (a new array). With motion blur (options.exposure > 0) give
+        ``pose_at(time)`` and the frame time ``t``: sub-frames are drawn over
+        [t - exposure / 2, t + exposure / 2]."""
+        opt, scene = self.options, self.scene
+        cam = self.camera
+        t_frame = 0.0 if t is None else t
+        brightness = opt.brightness * scene.gain(t_frame)
+        if opt.exposure > 0 and opt.blur_samples > 1 and pose_at is not None and t is not None:
+            if self._accum is None:
+                self._accum = np.zeros((cam.height, cam.width, 3), np.float32)
+            self._accum[...] = 0.0
+            n = opt.blur_samples
+            for k in range(n):
+                tk = t + opt.exposure * ((k + 0.5) / n - 0.5)
+                cv2.accumulate(self.draw(pose_at(tk), self._frame, hidden, tk), self._accum)
+            if self._gradient is not None:
+                frame = cv2.multiply(self._accum, self._gradient, scale=brightness / n,
+                                     dtype=cv2.CV_8U)
+            else:
+                frame = cv2.convertScaleAbs(self._accum, alpha=brightness / n)
+        else:
+            self.draw(pose, self._frame, hidden, t_frame)
+            if self._gradient is not None:
+                frame = cv2.multiply(self._frame, self._gradient, scale=brightness,
+                                     dtype=cv2.CV_8U)
+            elif brightness != 1.0:
+                frame = cv2.convertScaleAbs(self._frame, alpha=brightness)
+            else:
+                frame = self._frame.copy()
+        if self._lens is not None:
+            frame = cv2.remap(frame, self._lens[0], self._lens[1], cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
+        if self._noise is not None:
+            pos, neg = self._noise
+            dy, dx = self._rng.integers(0, 32, 2)
+            h, w = cam.height, cam.width
+            cv2.add(frame, pos[dy:dy + h, dx:dx + w], dst=frame)
+            # Same offset for both halves: pos - neg is the Gaussian sample itself.
+            cv2.subtract(frame, neg[dy:dy + h, dx:dx + w], dst=frame)
+        if scene.compression == 'jpeg':
+            frame = jpeg(frame, scene.quality)
+        return frame
+
+
+def pose_interpolator(t: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarray,
+                      phase: np.ndarray) -> Callable[[float], RobotPose]:
+    """pose_at(time) by linear interpolation of sampled states (phase unwrapped first)."""
+    t = np.asarray(t, float)
+    unwrapped = np.unwrap(np.asarray(phase, float))
+
+    def pose_at(time: float) -> RobotPose:
+        return RobotPose(float(np.interp(time, t, x)), float(np.interp(time, t, y)),
+                         float(np.interp(time, t, theta)),
+                         float(np.interp(time, t, unwrapped) % (2.0 * np.pi)))
+    return pose_at
