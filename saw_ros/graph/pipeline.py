@@ -156,13 +156,13 @@ def write_report(run: PipelineRun) -> Path:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from saw_ros.ros import cdr
     from saw_ros.bag.reader import BagReader
 
     truth, tracked = [], []
-    for m in BagReader(str(run.bag_dir)).messages(['/saw/pose', '/saw/tracking/pose']):
-        t, x, _y, _theta = cdr.pose_stamped(m.data)
-        (truth if m.topic == '/saw/pose' else tracked).append((t, x))
+    reader = BagReader(str(run.bag_dir))
+    for m, pose in reader.decoded_messages(['/saw/pose', '/saw/tracking/pose']):
+        t = pose.header.stamp.sec + pose.header.stamp.nanosec * 1e-9
+        (truth if m.topic == '/saw/pose' else tracked).append((t, pose.pose.position.x))
     truth, tracked = np.array(truth), np.array(tracked)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
     c = run.comparison

@@ -126,9 +126,11 @@ class Player(Node):
         return sum(pub.get_subscription_count() for pub in pubs)
 
     def play(self) -> None:
-        from saw_ros.graph.process import wait_for
         need = int(self.p['wait_for_subscribers'])
-        if need > 0 and not wait_for(lambda: self._subscriber_count() >= need, 10.0):
+        deadline = time.monotonic() + 10.0
+        while self._subscriber_count() < need and time.monotonic() < deadline:
+            time.sleep(0.02)     # discovery runs in the DDS threads; nothing to spin here
+        if self._subscriber_count() < need:
             self.get_logger().warn(f'only {self._subscriber_count()} of {need} subscriptions '
                                    'after 10 s; playing anyway')
         rate = float(self.p['rate'])
