@@ -34,7 +34,8 @@ def comparator() -> RunComparator:
 def truth_from_bag(reader, comp: RunComparator) -> int:
     n = 0
     for m in reader.messages([POSE]):
-        t, x, _, _ = cdr.pose_stamped(m.data)
+        t_ns, x, _, _ = cdr.pose_stamped_ns(m.data)
+        t = t_ns / 1e9
         comp.add_truth(t, x)
         n += 1
     return n
@@ -106,8 +107,8 @@ def test_player_into_vision_node_gives_the_same_ar(offline, tmp_path, ros_contex
     comp, tracked = comparator(), []
 
     def on_truth(data):
-        t, x, _, _ = cdr.pose_stamped(data)
-        comp.add_truth(t, x)
+        t_ns, x, _, _ = cdr.pose_stamped_ns(data)
+        comp.add_truth(t_ns / 1e9, x)
 
     def on_tracked(msg):
         t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import deserialize_message, serialize_message
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, JointState
 
 from saw_ros.ros import cdr
@@ -57,7 +58,7 @@ def test_pose_stamped_ns_and_stamp_ns():
         assert (t, x, y) == (3_600_999_000_001, 0.1, 0.0225)
         assert math.isclose(theta, -0.3)
         assert cdr.stamp_ns(data) == t
-    assert cdr.stamp_ns(serialize_message(conv.clock_msg(42_000_000))) == 42_000_000
+    assert cdr.stamp_ns(serialize_message(Clock(clock=conv.time_msg(42_000_000)))) == 42_000_000
     assert cdr.stamp_ns(conv.clock_cdr(42_000_000)) == 42_000_000
 
 

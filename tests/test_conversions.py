@@ -1,13 +1,78 @@
 """numpy -> message conversions of the simulator, without any node."""
+import array
 import math
+from typing import Optional, Sequence
 
 import numpy as np
 import pytest
+from geometry_msgs.msg import WrenchStamped
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import PointCloud2, PointField
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, PointCloud2, PointField
 
 from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator, link_geometry
+
+
+# -- rclpy message builders: the reference every CDR encoder below is checked against ---------
+
+def _header(msg, nanoseconds: int, frame: str):
+    conv.time_msg(nanoseconds, msg.header.stamp)
+    msg.header.frame_id = frame
+    return msg
+
+
+def clock_msg(nanoseconds: int, out: Optional[Clock] = None) -> Clock:
+    msg = Clock() if out is None else out
+    conv.time_msg(nanoseconds, msg.clock)
+    return msg
+
+
+def contacts_msg(points: np.ndarray, nanoseconds: int,
+                 out: Optional[PointCloud2] = None) -> PointCloud2:
+    """PointCloud2 (height 1, dense) of CONTACT_DTYPE points, in ``surface``."""
+    msg = _header(PointCloud2() if out is None else out, nanoseconds, conv.SURFACE_FRAME)
+    if out is None or len(msg.fields) != len(conv.CONTACT_FIELDS):
+        msg.fields = conv.CONTACT_FIELDS
+    msg.height = 1
+    msg.width = len(points)
+    msg.is_bigendian = False
+    msg.point_step = conv.CONTACT_DTYPE.itemsize
+    msg.row_step = conv.CONTACT_DTYPE.itemsize * len(points)
+    msg.is_dense = True
+    data = array.array('B')
+    data.frombytes(np.ascontiguousarray(points, conv.CONTACT_DTYPE).tobytes())
+    msg.data = data
+    return msg
+
+
+def wrench_msg(fx: float, fy: float, mz: float, nanoseconds: int,
+               out: Optional[WrenchStamped] = None) -> WrenchStamped:
+    """Net contact force (fx, fy, 0) and moment (0, 0, mz) on the robot, in ``base_link``."""
+    msg = _header(WrenchStamped() if out is None else out, nanoseconds, conv.BODY_FRAME)
+    f, t = msg.wrench.force, msg.wrench.torque
+    f.x, f.y, f.z = float(fx), float(fy), 0.0
+    t.x, t.y, t.z = 0.0, 0.0, float(mz)
+    return msg
+
+
+def joint_state_msg(names: Sequence[str], phase: float, omega: float, angles: np.ndarray,
+                    rates: np.ndarray, nanoseconds: int,
+                    out: Optional[JointState] = None) -> JointState:
+    """``helix``: phase in [0, 2 pi) and speed omega = 2 pi f; then ``base_link_joint`` and
+    ``link_00``..: ``angles`` (rad, relative to the body x axis) and ``rates`` (rad/s)."""
+    msg = JointState() if out is None else out
+    conv.time_msg(nanoseconds, msg.header.stamp)
+    msg.header.frame_id = conv.BODY_FRAME
+    if out is None or len(msg.name) != len(names):
+        msg.name = list(names)
+    position = array.array('d', (float(phase),))
+    position.frombytes(np.ascontiguousarray(angles, float).tobytes())
+    msg.position = position
+    velocity = array.array('d', (float(omega),))
+    velocity.frombytes(np.ascontiguousarray(rates, float).tobytes())
+    msg.velocity = velocity
+    return msg
 
 
 def test_stamps_are_exact_integer_nanoseconds():
@@ -17,7 +82,7 @@ def test_stamps_are_exact_integer_nanoseconds():
     stamp = conv.time_msg(3_600_000 * dt_ns + 999 * dt_ns)
     assert (stamp.sec, stamp.nanosec) == (3600, 999_000_000)
     assert conv.stamp_ns(stamp) == 3_600_999_000_000
-    assert conv.clock_msg(2 * dt_ns).clock.nanosec == 2_000_000
+    assert clock_msg(2 * dt_ns).clock.nanosec == 2_000_000
     with pytest.raises(ValueError):
         conv.dt_nanoseconds(1e-10)
 
@@ -33,7 +98,7 @@ def test_pose_twist_wrench_frames_and_values():
     assert twist.header.frame_id == 'surface'
     assert (twist.twist.linear.x, twist.twist.linear.y, twist.twist.angular.z) == (0.05, -0.01,
                                                                                      0.2)
-    wrench = conv.wrench_msg(1.0, 2.0, 0.01, 5_000_000)
+    wrench = wrench_msg(1.0, 2.0, 0.01, 5_000_000)
     assert wrench.header.frame_id == 'base_link'
     assert (wrench.wrench.force.x, wrench.wrench.force.y, wrench.wrench.torque.z) == (1.0, 2.0,
                                                                                       0.01)
@@ -64,7 +129,7 @@ def test_contact_points_only_tips_in_contact_with_link_and_surface():
 
 def test_contacts_cloud_is_self_describing_and_round_trips():
     points = _hand_points()
-    msg = conv.contacts_msg(points, 7_000_000)
+    msg = contacts_msg(points, 7_000_000)
     assert msg.header.frame_id == 'surface'
     assert (msg.height, msg.width, msg.is_dense, msg.is_bigendian) == (1, 2, True, False)
     assert msg.point_step == 24 and msg.row_step == 48 and len(msg.data) == 48
@@ -78,7 +143,7 @@ def test_contacts_cloud_is_self_describing_and_round_trips():
     back = conv.points_of(deserialize_message(serialize_message(msg), PointCloud2))
     for name in points.dtype.names:
         np.testing.assert_array_equal(back[name], points[name])
-    empty = conv.contacts_msg(points[:0], 8_000_000, out=msg)
+    empty = contacts_msg(points[:0], 8_000_000, out=msg)
     assert (empty.width, len(empty.data), empty.row_step) == (0, 0, 0)
 
 
@@ -132,7 +197,7 @@ def test_joint_table_matches_link_geometry():
     names = conv.joint_names(robot.wave_links)
     assert names[:3] == ['helix', 'base_link_joint', 'link_00'] and names[-1] == 'link_18'
     angles, rates = table.at(0.7, 2 * math.pi)
-    msg = conv.joint_state_msg(names, 0.7, 2 * math.pi, angles, rates, 3_000_000)
+    msg = joint_state_msg(names, 0.7, 2 * math.pi, angles, rates, 3_000_000)
     assert len(msg.name) == len(msg.position) == len(msg.velocity) == 21
     assert msg.position[0] == 0.7 and msg.velocity[0] == 2 * math.pi
     assert list(msg.position[1:]) == angles.tolist()
@@ -153,15 +218,15 @@ def test_cdr_encoders_match_rclpy_serialization():
     angles, rates = conv.JointTable(robot).at(1.3, 2 * math.pi)
     points = _hand_points()
     cases = [
-        (conv.clock_cdr(ns), conv.clock_msg(ns), Clock),
+        (conv.clock_cdr(ns), clock_msg(ns), Clock),
         (conv.pose_cdr(0.1, 0.02, -0.4, ns), conv.pose_msg(0.1, 0.02, -0.4, ns), PoseStamped),
         (conv.twist_cdr(0.1, -0.2, 0.3, ns), conv.twist_msg(0.1, -0.2, 0.3, ns), TwistStamped),
-        (conv.wrench_cdr(1.5, -2.5, 0.01, ns), conv.wrench_msg(1.5, -2.5, 0.01, ns),
+        (conv.wrench_cdr(1.5, -2.5, 0.01, ns), wrench_msg(1.5, -2.5, 0.01, ns),
          WrenchStamped),
-        (conv.ContactsCdr()(points, ns), conv.contacts_msg(points, ns), PointCloud2),
-        (conv.ContactsCdr()(points[:0], ns), conv.contacts_msg(points[:0], ns), PointCloud2),
+        (conv.ContactsCdr()(points, ns), contacts_msg(points, ns), PointCloud2),
+        (conv.ContactsCdr()(points[:0], ns), contacts_msg(points[:0], ns), PointCloud2),
         (conv.JointStateCdr(names)(1.3, 2 * math.pi, angles, rates, ns),
-         conv.joint_state_msg(names, 1.3, 2 * math.pi, angles, rates, ns), JointState),
+         joint_state_msg(names, 1.3, 2 * math.pi, angles, rates, ns), JointState),
     ]
     for raw, msg, cls in cases:
         reference = np.frombuffer(serialize_message(msg), np.uint8)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import List, Optional
 
@@ -65,9 +65,6 @@ class Comparison:
     @property
     def steady(self) -> bool:
         return self.status == 'steady'
-
-    def as_dict(self):
-        return asdict(self)
 
 
 VELOCITY_WINDOW = 0.010   # s

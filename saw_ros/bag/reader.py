@@ -25,8 +25,7 @@ from typing import Dict, Iterable, Iterator, List, Optional
 import yaml
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.reader import make_reader
-from mcap.records import Channel, ChunkIndex, Metadata, Schema, Statistics
+from mcap.records import Channel, ChunkIndex, Schema, Statistics
 
 MAGIC = b'\x89MCAP0\r\n'
 _RECORD = struct.Struct('<BQ')            # opcode, body length
@@ -553,16 +552,6 @@ class BagReader:
                     f'{stamp(m.log_time)}, sequence {m.sequence}, {len(m.data)} bytes) does not '
                     f'decode: {type(exc).__name__}: {exc}') from exc
             yield m, decoded
-
-    def rosbag2_metadata_records(self) -> List[Metadata]:
-        out = []
-        for path in self.files:
-            with open(path, 'rb') as f:
-                try:
-                    out += [m for m in make_reader(f).iter_metadata() if m.name == 'rosbag2']
-                except McapError:
-                    pass
-        return out
 
     # ---- summary
     def topics(self) -> Dict[str, TopicSummary]:

@@ -240,9 +240,6 @@ class BagWriter:
                                     channel_id)
         return channel_id
 
-    def has_topic(self, name: str) -> bool:
-        return name in self._topics
-
     def write(self, topic: str, data: bytes, log_time: int, publish_time: Optional[int] = None,
               sequence: int = 0) -> None:
         """One serialised message (bytes as received), times in ns since the epoch. It reaches

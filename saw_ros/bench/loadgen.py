@@ -101,7 +101,7 @@ class LoadGen(Node):
         need = int(p['wait_subscribers'])
         if need > 0 and not wait_for(
                 lambda: all(pub.get_subscription_count() >= need for pub in pubs), 30.0):
-            self.get_logger().warn('not every topic has a subscriber; publishing anyway')
+            self.get_logger().warning('not every topic has a subscriber; publishing anyway')
         time.sleep(p['start_delay'])
         period = 1.0 / p['rate'] if p['rate'] > 0 else None
         image_period = 1.0 / p['image_fps'] if self.image else None

@@ -48,14 +48,6 @@ class Trajectory:
     normal: Optional[np.ndarray] = None
     tangential: Optional[np.ndarray] = None
 
-    @property
-    def x(self):
-        return self.q[..., 0]
-
-    @property
-    def vx(self):
-        return self.q[..., 3]
-
 
 class Simulator:
     """Steps S scenarios together; ``Simulator(scenario)`` is the one-scenario case."""

@@ -12,7 +12,7 @@ does not say).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -110,9 +110,6 @@ class RunMetrics:
     steady_from: Optional[float]        # s, CCI of vx under 2 % from here on
     cci_2pct_after: Optional[float]     # s, every velocity's CCI under 2 %
     cci_02pct_after: Optional[float]    # s, every velocity's CCI under 0.2 %
-
-    def as_dict(self):
-        return asdict(self)
 
 
 def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0) -> RunMetrics:

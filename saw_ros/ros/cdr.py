@@ -49,12 +49,6 @@ def pose_stamped_ns(data: bytes):
     return sec * 1_000_000_000 + nanosec, x, y, 2.0 * math.atan2(qz, qw)
 
 
-def pose_stamped(data: bytes):
-    """(stamp in s, x, y, pitch about z) of a geometry_msgs/PoseStamped."""
-    t, x, y, theta = pose_stamped_ns(data)
-    return t / 1e9, x, y, theta
-
-
 class JointPosition:
     """Reads one joint's position (by name) from sensor_msgs/JointState CDR bytes.
 

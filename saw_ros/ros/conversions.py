@@ -11,16 +11,14 @@ that 1 ms steps give stamps exactly 1 000 000 ns apart, with no floating-point d
 """
 from __future__ import annotations
 
-import array
 import math
 import struct
 from typing import Optional, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, PointCloud2, PointField
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from sensor_msgs.msg import PointCloud2, PointField
 
 from saw_ros.ros.cdr import ENCAPSULATION, CdrWriter
 
@@ -59,13 +57,6 @@ def time_msg(nanoseconds: int, out: Optional[Time] = None) -> Time:
 
 def stamp_ns(stamp: Time) -> int:
     return stamp.sec * NS_PER_S + stamp.nanosec
-
-
-def clock_msg(nanoseconds: int, out: Optional[Clock] = None) -> Clock:
-    msg = Clock() if out is None else out
-    time_msg(nanoseconds, msg.clock)
-    return msg
-
 
 def _header(msg, nanoseconds: int, frame: str):
     time_msg(nanoseconds, msg.header.stamp)
@@ -120,25 +111,6 @@ def contact_points(tips: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
     points['slipping'] = slipping[index]
     return points
 
-
-def contacts_msg(points: np.ndarray, nanoseconds: int,
-                 out: Optional[PointCloud2] = None) -> PointCloud2:
-    """PointCloud2 (height 1, dense) of CONTACT_DTYPE points, in ``surface``."""
-    msg = _header(PointCloud2() if out is None else out, nanoseconds, SURFACE_FRAME)
-    if out is None or len(msg.fields) != len(CONTACT_FIELDS):
-        msg.fields = CONTACT_FIELDS
-    msg.height = 1
-    msg.width = len(points)
-    msg.is_bigendian = False
-    msg.point_step = CONTACT_DTYPE.itemsize
-    msg.row_step = CONTACT_DTYPE.itemsize * len(points)
-    msg.is_dense = True
-    data = array.array('B')
-    data.frombytes(np.ascontiguousarray(points, CONTACT_DTYPE).tobytes())
-    msg.data = data
-    return msg
-
-
 def points_of(msg: PointCloud2) -> np.ndarray:
     """Read any little-endian PointCloud2 by its field names into a structured array."""
     if msg.is_bigendian:
@@ -167,39 +139,8 @@ def contact_wrench(points: np.ndarray, x: float, y: float, theta: float):
     c, s = math.cos(theta), math.sin(theta)
     return c * fx + s * fy, -s * fx + c * fy, mz
 
-
-def wrench_msg(fx: float, fy: float, mz: float, nanoseconds: int,
-               out: Optional[WrenchStamped] = None) -> WrenchStamped:
-    """Net contact force (fx, fy, 0) and moment (0, 0, mz) on the robot, in ``base_link``."""
-    msg = _header(WrenchStamped() if out is None else out, nanoseconds, BODY_FRAME)
-    f, t = msg.wrench.force, msg.wrench.torque
-    f.x, f.y, f.z = float(fx), float(fy), 0.0
-    t.x, t.y, t.z = 0.0, 0.0, float(mz)
-    return msg
-
-
 def joint_names(wave_links: int) -> list:
     return ['helix', 'base_link_joint'] + [f'link_{i:02d}' for i in range(wave_links)]
-
-
-def joint_state_msg(names: Sequence[str], phase: float, omega: float, angles: np.ndarray,
-                    rates: np.ndarray, nanoseconds: int,
-                    out: Optional[JointState] = None) -> JointState:
-    """``helix``: phase in [0, 2 pi) and speed omega = 2 pi f; then ``base_link_joint`` and
-    ``link_00``..: ``angles`` (rad, relative to the body x axis) and ``rates`` (rad/s)."""
-    msg = JointState() if out is None else out
-    time_msg(nanoseconds, msg.header.stamp)
-    msg.header.frame_id = BODY_FRAME
-    if out is None or len(msg.name) != len(names):
-        msg.name = list(names)
-    position = array.array('d', (float(phase),))
-    position.frombytes(np.ascontiguousarray(angles, float).tobytes())
-    msg.position = position
-    velocity = array.array('d', (float(omega),))
-    velocity.frombytes(np.ascontiguousarray(rates, float).tobytes())
-    msg.velocity = velocity
-    return msg
-
 
 class JointTable:
     """Base-link and wave-link angles tabulated over one wave cycle, linearly interpolated.

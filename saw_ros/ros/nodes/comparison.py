@@ -175,7 +175,7 @@ class ComparisonNode(Node):
         try:
             self.scenario = Scenario().with_values(merged)
         except Exception as exc:  # the simulator validated them; keep the last good set
-            self.get_logger().warn(f'ignoring simulator parameters: {exc}')
+            self.get_logger().warning(f'ignoring simulator parameters: {exc}')
             return
         if self.scenario_values and merged != self.scenario_values:
             # New conditions: a new steady state to wait for.
@@ -198,8 +198,9 @@ class ComparisonNode(Node):
         t_ns, x, _y, _theta = cdr.pose_stamped_ns(data)
         t = t_ns / 1e9
         if self._last_truth_ns is not None and t_ns < self._last_truth_ns:
-            self.get_logger().warn(f'simulated time went back from {self._last_truth_ns / 1e9:.3f}'
-                                   f' s to {t:.3f} s (a replay restarted?): comparison restarted')
+            self.get_logger().warning(
+                f'simulated time went back from {self._last_truth_ns / 1e9:.3f} s to {t:.3f} s'
+                ' (a replay restarted?): comparison restarted')
         self._last_truth_ns = t_ns
         self._last_truth_wall = self._wall.now()
         self.comparator.add_truth(t, x)

@@ -102,7 +102,7 @@ class Player(Node):
             try:
                 msg_type = message_class(t.type)
             except (ImportError, AttributeError, ValueError):
-                self.get_logger().warn(f'{name}: type {t.type} unknown here; not played')
+                self.get_logger().warning(f'{name}: type {t.type} unknown here; not played')
                 continue
             self.publishers_by_topic[name] = self.create_publisher(
                 msg_type, name, offered_qos(t.offered_qos_profiles, int(p['queue_depth'])))
@@ -131,7 +131,7 @@ class Player(Node):
         while self._subscriber_count() < need and time.monotonic() < deadline:
             time.sleep(0.02)     # discovery runs in the DDS threads; nothing to spin here
         if self._subscriber_count() < need:
-            self.get_logger().warn(f'only {self._subscriber_count()} of {need} subscriptions '
+            self.get_logger().warning(f'only {self._subscriber_count()} of {need} subscriptions '
                                    'after 10 s; playing anyway')
         rate = float(self.p['rate'])
         clock_period = int(1e9 / self.p['clock_rate']) if self.clock_from_log else None

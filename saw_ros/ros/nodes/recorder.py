@@ -268,7 +268,7 @@ class Recorder(Node):
             try:
                 msg_type = message_class(type_name)
             except (ImportError, AttributeError, ValueError):
-                self.get_logger().warn(f'{name}: type {type_name} unknown here; not recorded')
+                self.get_logger().warning(f'{name}: type {type_name} unknown here; not recorded')
                 self._subs[name] = None
                 continue
             self._queue.put(('topic', name, type_name, [offered_profile(q) for q in offers]))
