@@ -93,7 +93,7 @@ def test_pose_twist_wrench_frames_and_values():
     assert (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) == (0.1, 0.0225, 0)
     q = pose.pose.orientation
     assert (q.x, q.y) == (0.0, 0.0) and math.isclose(q.z ** 2 + q.w ** 2, 1.0)
-    assert math.isclose(conv.yaw_of(q), 0.3)
+    assert math.isclose(conv.pitch_of(q), 0.3)
     twist = conv.twist_msg(0.05, -0.01, 0.2, 5_000_000)
     assert twist.header.frame_id == 'surface'
     assert (twist.twist.linear.x, twist.twist.linear.y, twist.twist.angular.z) == (0.05, -0.01,

@@ -231,7 +231,7 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     assert np.mean(traction) == pytest.approx(mass * GRAVITY * math.sin(slope), rel=0.03)
     # The wrench (base_link axes) turned back into the surface frame says the same.
     poses = watcher.messages('/saw/pose')
-    thetas = [conv.yaw_of(p.pose.orientation) for p in poses[1000:2000]]
+    thetas = [conv.pitch_of(p.pose.orientation) for p in poses[1000:2000]]
     wrench_y = [w.wrench.force.x * math.sin(th) + w.wrench.force.y * math.cos(th)
                 for w, th in zip(watcher.messages('/saw/contact_wrench', 1000, 2000), thetas)]
     assert np.mean(wrench_y) == pytest.approx(np.mean(support), rel=1e-3)

@@ -14,7 +14,7 @@ from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.scene import ORANGE_RED, Clutter, SceneOptions
 from saw_ros.vision.synthetic import (evaluate, frames, hard_footage, simulate_run)
-from saw_ros.vision.tracker import OK, Tracker, TrackerConfig, detect
+from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus, detect
 from saw_ros.vision.video import VideoWriter
 
 SPACING = 0.32                  # m, the renderer's markers
@@ -112,9 +112,10 @@ def test_third_pink_markers_on_the_robots_line(level_run):
     out, tracker = _clutter_run(level_run, scene, n=80,
                                 hidden=lambda k: ('front', 'back') if 30 <= k < 65 else ())
     status = [res.status for res, _, _ in out]
-    first = status.index(OK)
+    first = status.index(TrackStatus.OK)
     assert 1 <= first <= 8 and status[:first] == ['ambiguous'] * first
-    assert status[first:] == [OK] * (30 - first) + ['both lost'] * 35 + [OK] * 15
+    assert status[first:] == ([TrackStatus.OK] * (30 - first) + ['both lost'] * 35
+                              + [TrackStatus.OK] * 15)
     assert all(abs(res.front - f) < 3e-4 and abs(res.back - b) < 3e-4
                for res, f, b in out if res.ok)
     assert tracker.counters.acquisitions == 2

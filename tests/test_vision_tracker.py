@@ -8,7 +8,7 @@ from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.synthetic import evaluate, simulate_run
-from saw_ros.vision.tracker import OK, Tracker, TrackerConfig, steady_speed
+from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus, steady_speed
 
 
 @pytest.fixture(scope='module')
@@ -18,7 +18,7 @@ def level_run():
 
 def test_clean_frames_meet_the_accuracy_goals(level_run):
     ev = evaluate(level_run, start=2.0)
-    assert all(r.status == OK for r in ev.results)
+    assert all(r.status == TrackStatus.OK for r in ev.results)
     assert ev.position_rms_mm <= 0.3
     assert ev.pitch_error_deg <= 0.5
     assert ev.speed_error_pct <= 0.5, (ev.speed, ev.true_speed)
@@ -40,7 +40,7 @@ def test_noise_blur_brightness_and_hidden_markers(level_run, brightness):
                                                    brightness=brightness, seed=7),
                   start=2.0, hidden=hidden)
     assert ev.speed_error_pct <= 2.0, (ev.speed, ev.true_speed)
-    lost = [k for k, r in enumerate(ev.results) if r.status != OK]
+    lost = [k for k, r in enumerate(ev.results) if r.status != TrackStatus.OK]
     assert lost == list(range(60, 65)) + list(range(150, 155))
     assert [ev.results[k].status for k in (60, 150)] == ['front lost', 'back lost']
     for k in lost:                       # nothing made up on those frames

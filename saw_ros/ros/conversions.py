@@ -75,7 +75,7 @@ def pose_msg(x: float, y: float, theta: float, nanoseconds: int,
     return msg
 
 
-def yaw_of(quaternion) -> float:
+def pitch_of(quaternion) -> float:
     """Rotation about z of a quaternion that only rotates about z (the inverse of pose_msg)."""
     return 2.0 * math.atan2(quaternion.z, quaternion.w)
 

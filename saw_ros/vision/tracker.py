@@ -68,6 +68,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Deque, Dict, List, Optional, Tuple
 
 import cv2
@@ -75,8 +76,17 @@ import numpy as np
 
 from saw_ros.vision.camera import CameraModel
 
-OK = 'ok'
-AMBIGUOUS = 'ambiguous'
+
+
+class TrackStatus(StrEnum):
+    """What a frame gave; the value is the text of messages and CSV files."""
+    OK = 'ok'
+    FRONT_LOST = 'front lost'
+    BACK_LOST = 'back lost'
+    BOTH_LOST = 'both lost'
+    AMBIGUOUS = 'ambiguous'
+
+
 MARKERS = ('front', 'back')
 
 SIZE_RATIO = 2.5          # largest area ratio of the two markers (or of a marker to its size)
@@ -200,7 +210,7 @@ class FrameResult:
     """What one frame gave. Surface-frame points are complex x + i y in metres."""
 
     t: float
-    status: str
+    status: TrackStatus
     candidates: int = 0
     front_px: Optional[complex] = None        # image pixels (as detected, before undistortion)
     back_px: Optional[complex] = None
@@ -217,7 +227,7 @@ class FrameResult:
 
     @property
     def ok(self) -> bool:
-        return self.status == OK
+        return self.status is TrackStatus.OK
 
 
 def _ls_slope(t: np.ndarray, y: np.ndarray) -> float:
@@ -560,7 +570,7 @@ class Tracker:
             found, ambiguous = self._acquire(cands)
         c = self.counters
         c.frames += 1
-        res = FrameResult(t=t, status=OK, candidates=len(cands))
+        res = FrameResult(t=t, status=TrackStatus.OK, candidates=len(cands))
         for name in MARKERS:
             cand = found[name]
             if cand is None:
@@ -576,10 +586,11 @@ class Tracker:
             self._spacing = _learn(self._spacing, res.spacing_px)
         lost = [name for name in MARKERS if found[name] is None]
         if ambiguous:
-            res.status = AMBIGUOUS
+            res.status = TrackStatus.AMBIGUOUS
             c.ambiguous += 1
         elif lost:
-            res.status = 'both lost' if len(lost) == 2 else f'{lost[0]} lost'
+            res.status = (TrackStatus.BOTH_LOST if len(lost) == 2 else
+                          TrackStatus.FRONT_LOST if lost == ['front'] else TrackStatus.BACK_LOST)
         c.front_lost += 'front' in lost
         c.back_lost += 'back' in lost
         if len(lost) == 2:
@@ -589,7 +600,7 @@ class Tracker:
                 self._vector = None
         else:
             self._both_lost = 0
-        if res.status != OK:
+        if res.status is not TrackStatus.OK:
             c.consecutive_not_ok += 1
             c.longest_not_ok = max(c.longest_not_ok, c.consecutive_not_ok)
             return res

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.tracker import OK, Tracker, TrackerConfig, scale_from_spacing
+from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus, scale_from_spacing
 from saw_ros.vision.video import VideoError, read_frames, video_info
 from saw_ros.cli.errors import UserError
 
@@ -134,7 +134,7 @@ def measure_scale(path, camera_kw: dict, config: TrackerConfig, spacing: float,
 def _cells(k, r):
     def xy(p):
         return ('', '') if p is None else (f'{p.real:.6f}', f'{p.imag:.6f}')
-    return [k, f'{r.t:.6f}', r.status, *xy(r.front), *xy(r.back), *xy(r.position),
+    return [k, f'{r.t:.6f}', r.status.value, *xy(r.front), *xy(r.back), *xy(r.position),
             '' if r.pitch is None else f'{math.degrees(r.pitch):.4f}', *xy(r.velocity),
             *xy(r.velocity_smoothed), '' if r.steady_speed is None else f'{r.steady_speed:.6f}']
 
@@ -181,7 +181,7 @@ def run(args):
             for k, r in enumerate(results):
                 w.writerow(_cells(k, r))
     c = tracker.counters
-    ok = [r for r in results if r.status == OK]
+    ok = [r for r in results if r.status is TrackStatus.OK]
     print(f'{args.video}: {c.frames} frames over {results[-1].t:.3f} s; ok {c.ok}, '
           f'front lost {c.front_lost}, back lost {c.back_lost}, ambiguous {c.ambiguous}, '
           f'longest run of bad frames {c.longest_not_ok}')

@@ -35,7 +35,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.tracker import OK, Tracker, TrackerConfig
+from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
 from saw_ros.ros.runtime import (IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, NodeFailure, run_node,
                      with_depth)
 
@@ -183,7 +183,7 @@ class VisionNode(Node):
                 msg.header.frame_id = conv.SURFACE_FRAME
                 msg.point.x, msg.point.y = float(p.real), float(p.imag)
                 pub.publish(msg)
-        if res.status == OK:
+        if res.status is TrackStatus.OK:
             self._pub_pose.publish(conv.pose_msg(res.position.real, res.position.imag,
                                                  res.pitch, t_ns))
             if res.velocity is not None:
@@ -202,9 +202,10 @@ class VisionNode(Node):
         st = DiagnosticStatus()
         st.name = 'saw_ros vision: marker tracker'
         st.hardware_id = 'pink markers'
-        st.level = DiagnosticStatus.OK if res.status == OK else (
-            DiagnosticStatus.ERROR if res.status == 'both lost' else DiagnosticStatus.WARN)
-        st.message = res.status
+        st.level = (DiagnosticStatus.OK if res.status is TrackStatus.OK else
+                    DiagnosticStatus.ERROR if res.status is TrackStatus.BOTH_LOST else
+                    DiagnosticStatus.WARN)
+        st.message = res.status.value
         values = {'status': res.status, 'candidates': res.candidates, 'frames': c.frames,
                   'ok_frames': c.ok, 'front_lost_frames': c.front_lost,
                   'back_lost_frames': c.back_lost, 'ambiguous_frames': c.ambiguous,
