@@ -180,8 +180,8 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     SIGTERM exits 0 without a traceback. (Messages are decoded at the end: a test that stops
     spinning to decode at 6000 messages/s would lose messages of its own making.)"""
     slope = 0.3
-    proc = start_simulator(real_time_factor=RTF, **{'scenario.frequency': 0.0,
-                                                    'scenario.slope': slope})
+    proc = start_simulator(real_time_factor=RTF, **{'conditions.frequency': 0.0,
+                                                    'conditions.slope': slope})
     assert watcher.wait(lambda: min(map(watcher.count, TOPICS)) >= 2000, 30), proc.output()
 
     # Refused: out of range, and frozen at run time. The node runs on.
@@ -194,7 +194,7 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     assert proc.returncode is None
 
     # Accepted at once: the wave starts (2 Hz) and the robot advances.
-    good = watcher.set_parameter('scenario.frequency', 2.0)
+    good = watcher.set_parameter('conditions.frequency', 2.0)
     assert good.successful, good.reason
     changed = watcher.count('/saw/pose')
     assert watcher.wait(lambda: watcher.count('/saw/pose') >= changed + 1000, 20)
@@ -263,7 +263,7 @@ def test_as_fast_as_possible_still_serves_requests_and_stops_on_sigint(start_sim
     the process group) exits 0. (No stamp check: no Python subscriber keeps up at rtf 0.)"""
     proc = start_simulator(real_time_factor=0.0)
     assert watcher.wait(lambda: watcher.count() >= 100, 20), proc.output()
-    assert watcher.set_parameter('scenario.slope', 0.1).successful
+    assert watcher.set_parameter('conditions.slope', 0.1).successful
     assert watcher.set_parameter('real_time_factor', -2.0).successful is False
     assert watcher.call(Trigger, '/simulator/reset', Trigger.Request()).success
     assert proc.returncode is None

@@ -72,7 +72,7 @@ def test_default_window_is_pink_not_red(noise):
 def _clutter_run(run, scene, config=TrackerConfig(), start=2.0, n=40, camera=CameraModel(),
                  hidden=lambda k: ()):
     s = run.scenario
-    r = Renderer(s.robot, s.scenario.gap, camera, RenderOptions(), scene)
+    r = Renderer(s.robot, s.conditions.gap, camera, RenderOptions(), scene)
     tracker = Tracker(camera, config)
     out = []
     for k, t, pose, img in frames(run, r, [start + k / 60 for k in range(n)], hidden):
@@ -102,7 +102,7 @@ def test_third_pink_markers_on_the_robots_line(level_run):
     for longer than reacquire_after: acquired again at once (the spacing measured before
     picks the pair)."""
     from saw_ros.vision.scene import HOT_PINK
-    mid = Scenario().scenario.gap / 2
+    mid = Scenario().conditions.gap / 2
     pose = level_run.pose_at(2.0)
     scene = SceneOptions(clutter=(Clutter(HOT_PINK, pose.x - 0.16 - 0.07, mid),
                                   Clutter(HOT_PINK, pose.x + 0.16 + 0.14, mid)))
@@ -127,7 +127,7 @@ def test_pink_things_next_to_a_tracked_marker(level_run):
     ambiguous; with the front hidden, two blobs equally near its expected place too."""
     s = Scenario()
     cam = CameraModel(mirror=True, center_x=0.1)
-    r = Renderer(s.robot, s.scenario.gap, cam)
+    r = Renderer(s.robot, s.conditions.gap, cam)
     tracker = Tracker(cam)
     for k in range(20):
         t = 2.0 + k / 60
@@ -231,7 +231,7 @@ def test_track_command_takes_the_scale_from_the_marker_spacing(level_run, tmp_pa
     camera = CameraModel()                  # no lens here: the command's calibration is tested
     scene = SceneOptions(clutter=scene.clutter, gradient=0.3, flicker=0.1)   # in the bench
     s = level_run.scenario
-    r = Renderer(s.robot, s.scenario.gap, camera, RenderOptions(noise=4), scene)
+    r = Renderer(s.robot, s.conditions.gap, camera, RenderOptions(noise=4), scene)
     times = [2.5 + k / 60 for k in range(170)]
     video = tmp_path / 'clutter.mp4'
     with VideoWriter(video, 60.0, (camera.width, camera.height)) as w:

@@ -32,7 +32,7 @@ def test_camera_round_trip_and_intrinsics():
 
 def test_frame_shape_and_markers_drawn_where_reported():
     s = Scenario()
-    r = Renderer(s.robot, s.scenario.gap, CameraModel())
+    r = Renderer(s.robot, s.conditions.gap, CameraModel())
     img = r.render(POSE)
     assert img.shape == (720, 1280, 3) and img.dtype == np.uint8
     front, back = r.marker_pixels(POSE)
@@ -47,22 +47,22 @@ def test_frame_shape_and_markers_drawn_where_reported():
 
 def test_hidden_marker_and_realism_options():
     s = Scenario()
-    clean = Renderer(s.robot, s.scenario.gap, CameraModel()).render(POSE, hidden=('front',))
+    clean = Renderer(s.robot, s.conditions.gap, CameraModel()).render(POSE, hidden=('front',))
     assert len(detect(clean)) == 1
-    dim = Renderer(s.robot, s.scenario.gap, CameraModel(),
+    dim = Renderer(s.robot, s.conditions.gap, CameraModel(),
                    RenderOptions(brightness=0.6, texture=False)).render(POSE)
-    bright = Renderer(s.robot, s.scenario.gap, CameraModel(),
+    bright = Renderer(s.robot, s.conditions.gap, CameraModel(),
                       RenderOptions(brightness=1.4, texture=False)).render(POSE)
     assert dim.mean() < clean.mean() < bright.mean()
-    base = Renderer(s.robot, s.scenario.gap, CameraModel(), RenderOptions(texture=False))
-    noisy = Renderer(s.robot, s.scenario.gap, CameraModel(),
+    base = Renderer(s.robot, s.conditions.gap, CameraModel(), RenderOptions(texture=False))
+    noisy = Renderer(s.robot, s.conditions.gap, CameraModel(),
                      RenderOptions(noise=10, texture=False, seed=3))
     diff = noisy.render(POSE).astype(float) - base.render(POSE).astype(float)
     inside = (base.render(POSE) > 30) & (base.render(POSE) < 225)     # away from saturation
     assert np.std(diff[inside]) == pytest.approx(10, rel=0.1)
     # Motion blur: the exposure is centred on the frame time.
     moving = lambda t: POSE._replace(x=POSE.x + 0.06 * t)  # noqa: E731
-    blur = Renderer(s.robot, s.scenario.gap, CameraModel(), RenderOptions(exposure=1 / 60))
+    blur = Renderer(s.robot, s.conditions.gap, CameraModel(), RenderOptions(exposure=1 / 60))
     img = blur.render(moving(0.0), (), moving, 0.0)
     found = sorted(detect(img), key=lambda c: -c.u)
     front, _ = blur.marker_pixels(moving(0.0))
@@ -73,7 +73,7 @@ def test_render_is_fast_enough_smoke():
     """Not the benchmark (bench measures render_fps): a loose guard against regressions."""
     import time
     s = Scenario()
-    r = Renderer(s.robot, s.scenario.gap, CameraModel())
+    r = Renderer(s.robot, s.conditions.gap, CameraModel())
     r.render(POSE)
     start = time.perf_counter()
     for k in range(30):

@@ -17,7 +17,7 @@ LENS = (-0.12, 0.02, 0.0005, -0.0008, 0.0)
 
 def renderer(camera=CameraModel(), options=RenderOptions(texture=False), scene=SceneOptions()):
     s = Scenario()
-    return Renderer(s.robot, s.scenario.gap, camera, options, scene)
+    return Renderer(s.robot, s.conditions.gap, camera, options, scene)
 
 
 def test_lens_model_round_trip_and_opencv_agreement():
@@ -60,7 +60,7 @@ def test_distorted_frame_puts_the_markers_where_the_lens_does():
 
 
 def test_clutter_layers_lighting_and_jpeg():
-    gap = Scenario().scenario.gap
+    gap = Scenario().conditions.gap
     head = complex(POSE.x + 0.15, gap / 2)                     # on the robot's head
     scene = SceneOptions(clutter=(
         Clutter(ORANGE_RED, head.real, head.imag + 0.002, (0.008, 0.008)),          # hidden

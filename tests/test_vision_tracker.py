@@ -26,7 +26,7 @@ def test_clean_frames_meet_the_accuracy_goals(level_run):
 
 def test_inclined_clean_frames():
     slope = math.radians(20)
-    run = simulate_run(Scenario().with_values({'scenario.slope': slope}), 6.1)
+    run = simulate_run(Scenario().with_values({'conditions.slope': slope}), 6.1)
     ev = evaluate(run, camera=CameraModel(slope=slope), start=2.0)
     assert ev.position_rms_mm <= 0.3 and ev.pitch_error_deg <= 0.5
     assert ev.speed_error_pct <= 0.5
@@ -52,7 +52,7 @@ def test_noise_blur_brightness_and_hidden_markers(level_run, brightness):
 def test_frames_without_markers_give_no_position(level_run):
     s = Scenario()
     cam = CameraModel()
-    r = Renderer(s.robot, s.scenario.gap, cam)
+    r = Renderer(s.robot, s.conditions.gap, cam)
     tracker = Tracker(cam)
     blank = np.zeros((720, 1280, 3), np.uint8)
     out = [tracker.update(blank, 0.0),
@@ -69,7 +69,7 @@ def test_front_and_back_keep_their_identity(level_run):
     test_vision_acquisition.py)."""
     s = Scenario()
     cam = CameraModel(mirror=True, center_x=0.1)
-    r = Renderer(s.robot, s.scenario.gap, cam)
+    r = Renderer(s.robot, s.conditions.gap, cam)
     tracker = Tracker(cam)
     for k in range(20):
         t = 2.0 + k / 60

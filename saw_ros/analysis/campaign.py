@@ -58,8 +58,8 @@ def _track_condition(job) -> Tuple[np.ndarray, np.ndarray, int]:
     f = scenario.frequency
     phase = (2.0 * math.pi * f * t) % (2.0 * math.pi)
     pose_at = pose_interpolator(t, q[:, 0], q[:, 1], q[:, 2], phase)
-    camera = CameraModel(slope=scenario.scenario.slope, **camera_kw)
-    renderer = Renderer(scenario.robot, scenario.scenario.gap, camera, RenderOptions())
+    camera = CameraModel(slope=scenario.conditions.slope, **camera_kw)
+    renderer = Renderer(scenario.robot, scenario.conditions.gap, camera, RenderOptions())
     tracker = Tracker(camera, TrackerConfig())
     times = np.arange(1, int(math.floor(t[-1] * fps + 1e-9)) + 1) / fps
     xs = np.full(len(times), np.nan)
@@ -78,7 +78,7 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
                  camera: Optional[Dict[str, float]] = None, progress=None) -> List[ConditionResult]:
     base = base or Scenario()
     grid = [(s, v) for v in voltages for s in slopes_deg]
-    scenarios = [base.with_values({'scenario.slope': math.radians(s), 'motor.voltage': v})
+    scenarios = [base.with_values({'conditions.slope': math.radians(s), 'motor.voltage': v})
                  for s, v in grid]
     duration = max(duration_for(s.frequency) for s in scenarios)
     trajectory = simulate(scenarios, duration)

@@ -94,7 +94,7 @@ class Simulator:
                                      'run; start a new simulation')
         self.scenarios = list(scenarios)
 
-        cond = [s.scenario for s in scenarios]
+        cond = [s.conditions for s in scenarios]
         tips = self.table.count
 
         def per_scenario(get):
@@ -114,7 +114,7 @@ class Simulator:
             dt=self.dt)
         self._max_penetration = np.array([s.surface.max_penetration for s in scenarios])
         self._max_penetration_any = float(self._max_penetration.min())
-        gap = np.array([[s.scenario.gap] for s in scenarios])
+        gap = np.array([[s.conditions.gap] for s in scenarios])
         side = self.table.side
         # penetration = side * (y - level): top surface at y = gap, bottom at y = 0.
         self._level = np.where(side > 0, gap, 0.0) * side           # (S, P)
@@ -132,7 +132,7 @@ class Simulator:
     def reset(self) -> None:
         """Initial state (model.md): centred in the gap, at rest, wave phase 0."""
         self.q[:] = 0.0
-        self.q[1] = [s.scenario.gap / 2.0 for s in self.scenarios]
+        self.q[1] = [s.conditions.gap / 2.0 for s in self.scenarios]
         self.phase[:] = 0.0
         self.steps = 0
         self.contacts.reset()

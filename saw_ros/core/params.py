@@ -162,14 +162,15 @@ class SurfaceParams(_Validated):
 class ConditionParams(_Validated):
     """The operating conditions of one run: slope, gap, load and wave frequency."""
 
-    section = 'scenario'
+    section = 'conditions'
     slope: float = spec(0.0, 'rad', 'slope alpha of the surfaces (+ climbs, - descends)',
                         -math.pi / 2, math.pi / 2)
     gap: float = spec(0.045, 'm', 'distance h between the bottom and top surfaces', 0.0, None,
                       low_open=True)
     external_force: float = spec(0.0, 'N', 'resisting force F_ext along -x at the COM (tether)',
                                  None, None)
-    frequency: float = spec(1.0, 'Hz', 'helix turns per second f (0 stops the wave)', 0.0, 50.0)
+    frequency: float = spec(1.0, 'Hz', 'helix turns per second f (0 stops the wave); ignored '
+                            'while motor.voltage > 0, which then drives the helix', 0.0, 50.0)
 
 
 @dataclass(frozen=True)
@@ -194,7 +195,7 @@ class MotorParams(_Validated):
                               None, low_open=True)
     dead_voltage: float = spec(0.0, 'V', 'voltage below which the motor does not turn', 0.0, None)
     voltage: float = spec(0.0, 'V', 'motor voltage; above 0 it sets the helix frequency '
-                          '(hz_per_volt) instead of scenario.frequency', 0.0, 48.0)
+                          '(hz_per_volt) instead of conditions.frequency', 0.0, 48.0)
 
     def frequency(self, voltage: float) -> float:
         if not math.isfinite(voltage) or voltage < 0.0:
@@ -208,15 +209,15 @@ class Scenario:
 
     robot: RobotParams = field(default_factory=RobotParams)
     surface: SurfaceParams = field(default_factory=SurfaceParams)
-    scenario: ConditionParams = field(default_factory=ConditionParams)
+    conditions: ConditionParams = field(default_factory=ConditionParams)
     integration: IntegrationParams = field(default_factory=IntegrationParams)
     motor: MotorParams = field(default_factory=MotorParams)
 
     def __post_init__(self):
         lowest = self.robot.height - 2.0 * self.surface.max_penetration
-        if self.scenario.gap <= lowest:
+        if self.conditions.gap <= lowest:
             raise ParameterError(
-                f'scenario.gap = {self.scenario.gap:g} m is invalid: the robot '
+                f'conditions.gap = {self.conditions.gap:g} m is invalid: the robot '
                 f'({self.robot.height * 1000:.1f} mm tall) cannot be placed in it without '
                 f'pressing deeper than surface.max_penetration = '
                 f'{self.surface.max_penetration:g} m into each surface; allowed ({lowest:g}, '
@@ -225,13 +226,21 @@ class Scenario:
     @property
     def frequency(self) -> float:
         """Helix frequency of this run, Hz: from motor.voltage when it is set, else
-        scenario.frequency."""
+        conditions.frequency."""
         if self.motor.voltage > 0.0:
             return self.motor.frequency(self.motor.voltage)
-        return self.scenario.frequency
+        return self.conditions.frequency
+
+    @property
+    def frequency_source(self) -> str:
+        """Which parameter drives the helix: motor.voltage when above 0, else
+        conditions.frequency."""
+        if self.motor.voltage > 0.0:
+            return f'motor.voltage = {self.motor.voltage:g} V; conditions.frequency ignored'
+        return 'conditions.frequency'
 
     # -- flat name access, shared by the YAML files, the node parameters and the CLI ----------
-    SECTIONS = ('robot', 'surface', 'scenario', 'integration', 'motor')
+    SECTIONS = ('robot', 'surface', 'conditions', 'integration', 'motor')
 
     def flat(self) -> Dict[str, Any]:
         """{'surface.normal_stiffness': 15500.0, ...}"""

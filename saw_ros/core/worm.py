@@ -92,8 +92,8 @@ def anchor_normal_force(worm: WormParams, scenario: Scenario) -> float:
     if worm.anchor_normal_force is not None:
         return worm.anchor_normal_force
     s = scenario.surface
-    squeeze = max(0.0, (worm.height - scenario.scenario.gap) / 2.0)
-    share = worm.mass * GRAVITY * math.cos(scenario.scenario.slope) / worm.cells
+    squeeze = max(0.0, (worm.height - scenario.conditions.gap) / 2.0)
+    share = worm.mass * GRAVITY * math.cos(scenario.conditions.slope) / worm.cells
     return 2.0 * s.normal_stiffness * squeeze ** s.hertz_exponent + max(share, 0.0)
 
 
@@ -107,7 +107,7 @@ class WormResult:
 
 def _load(worm: WormParams, scenario: Scenario) -> float:
     mu = scenario.surface.friction_coefficient
-    c = scenario.scenario
+    c = scenario.conditions
     return mu * worm.moving_normal_force + worm.mass * GRAVITY * math.sin(c.slope) \
         + c.external_force
 
@@ -159,8 +159,8 @@ def contact_law(scenarios, worm: WormParams = WormParams(), cycles: int = 3,
                   * x.tangential_stiffness for x in surf])[:, None]
     mu = np.array([x.friction_coefficient for x in surf])[:, None]
     f_a = np.array([anchor_normal_force(worm, sc) for sc in scenarios])[:, None]
-    demand = np.array([worm.mass * GRAVITY * math.sin(sc.scenario.slope)
-                       + sc.scenario.external_force for sc in scenarios])
+    demand = np.array([worm.mass * GRAVITY * math.sin(sc.conditions.slope)
+                       + sc.conditions.external_force for sc in scenarios])
     offsets = -s * np.arange(n, dtype=float)          # cell positions relative to the body
     c = np.tile(offsets, (S, 1))
     anchor = c.copy()                                  # body at X = 0, springs unstretched

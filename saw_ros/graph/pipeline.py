@@ -111,7 +111,7 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                             idle_timeout=2.0,
                             **({'reference_file': str(reference_file)} if reference_file else {}))
         # The level camera sees the surfaces at the run's slope; the tracker must know it too.
-        slope = float(scenario.get('scenario.slope', 0.0))
+        slope = float(scenario.get('conditions.slope', 0.0))
         vision_node = launch('vision', use_sim_time=True, slope=slope)
         camera_node = launch('camera', use_sim_time=True, slope=slope, **camera_params)
         if record:

@@ -43,7 +43,7 @@ def descriptor(name: str, value, meta: Dict) -> ParameterDescriptor:
 
 
 def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> None:
-    """``-p scenario.slope:=0`` or ``slope: 0`` in YAML arrive as INTEGER overrides, which rclpy
+    """``-p conditions.slope:=0`` or ``slope: 0`` in YAML arrive as INTEGER overrides, which rclpy
     refuses for a DOUBLE parameter: turn them into doubles before declaring."""
     overrides = getattr(node, '_parameter_overrides', None)
     if not isinstance(overrides, dict):

@@ -90,7 +90,7 @@ def cluttered_scene(run: Run, camera: CameraModel = CameraModel(), compression: 
     the back marker's gate for about 35 frames). Lighting gradient +-35 % and 10 % flicker at
     100 Hz; compression as given."""
     x0, x1 = camera.visible_x_range(0.0)
-    gap = run.scenario.scenario.gap
+    gap = run.scenario.conditions.gap
     mid = gap / 2.0
     marker = (0.012, 0.012)
     pose = run.pose_at(cross_at)
@@ -150,7 +150,7 @@ def evaluate(run: Run, camera: CameraModel = CameraModel(),
         -> Evaluation:
     """Render the run from ``start`` (to ``end``, default the run's end) and track it; the
     tracker sees ``tracker_camera`` (default: the rendering camera, so it knows the lens)."""
-    renderer = Renderer(run.scenario.robot, run.scenario.scenario.gap, camera, options, scene)
+    renderer = Renderer(run.scenario.robot, run.scenario.conditions.gap, camera, options, scene)
     tracker = Tracker(tracker_camera or camera, config)
     radius = options.marker_radius
     margin = (radius + 0.002) * camera.scale

@@ -60,7 +60,7 @@ def test_comparison_reports_both_ars_and_their_error_then_a_final_summary(ros_co
         assert wait_for(lambda: 'comparison' in tracker.get_node_names(), 30, spin=spin)
         sim = ManagedProcess('simulator', node_command(
             'simulator', params={'duration': 4.0, 'real_time_factor': 1.0,
-                                 'scenario.slope': SLOPE}), None, logs)
+                                 'conditions.slope': SLOPE}), None, logs)
         assert wait_for(lambda: any('final' in r.status[0].name for r in tracker.reports), 60,
                         spin=spin), comparison.output() + sim.output()
         steady = [r for r in tracker.reports if values(r).get('status') == 'steady']
@@ -74,7 +74,7 @@ def test_comparison_reports_both_ars_and_their_error_then_a_final_summary(ros_co
                 p.stop()
         executor.shutdown()
         tracker.destroy_node()
-    s = Scenario().with_values({'scenario.slope': SLOPE})
+    s = Scenario().with_values({'conditions.slope': SLOPE})
     tr = simulate(s, 4.0)
     core_ar = analyse(tr.t, tr.q[:, 0], s.robot, s.frequency).advance_ratio
     assert float(final['ar_sim']) == pytest.approx(core_ar, rel=0.01)

@@ -20,7 +20,7 @@ def graph_run(tmp_path_factory):
     out = tmp_path_factory.mktemp('graph')
     run = run_pipeline(out, duration=4.0, real_time_factor=0.5, video=False,
                        bag_dir=out / 'bag',
-                       scenario={'scenario.slope': math.radians(SLOPE_DEG),
+                       scenario={'conditions.slope': math.radians(SLOPE_DEG),
                                  'motor.voltage': VOLTS})
     return run
 

@@ -16,7 +16,7 @@ def metrics(scenario, duration=4.0):
 @pytest.mark.parametrize('slope_deg', [0.0, 30.0, -20.0])
 def test_robot_at_rest_settles_with_normal_forces_carrying_m_g_cos_alpha(slope_deg):
     alpha = math.radians(slope_deg)
-    s = Scenario().with_values({'scenario.frequency': 0.0, 'scenario.slope': alpha})
+    s = Scenario().with_values({'conditions.frequency': 0.0, 'conditions.slope': alpha})
     sim = Simulator(s)
     sim.run(3.0)
     fn = sim.contacts.normal[0]
@@ -29,7 +29,7 @@ def test_robot_at_rest_settles_with_normal_forces_carrying_m_g_cos_alpha(slope_d
 
 def test_default_case_crawls_head_first_with_the_papers_advance_ratio():
     level = metrics(Scenario())
-    vertical = metrics(Scenario().with_values({'scenario.slope': math.pi / 2}))
+    vertical = metrics(Scenario().with_values({'conditions.slope': math.pi / 2}))
     # Paper (Figure 21, Conclusions): 0.72 level, 0.61 vertical.
     assert level.advance_ratio == pytest.approx(0.72, rel=0.10)
     assert vertical.advance_ratio == pytest.approx(0.61, rel=0.16)
@@ -45,7 +45,7 @@ def test_velocities_converge_cycle_to_cycle_as_figure_8():
 
 @pytest.mark.parametrize('slope_deg', [0.0, 90.0])
 def test_halving_dt_changes_ar_by_under_2_percent(slope_deg):
-    s = Scenario().with_values({'scenario.slope': math.radians(slope_deg)})
+    s = Scenario().with_values({'conditions.slope': math.radians(slope_deg)})
     coarse = metrics(s, 3.0).advance_ratio
     fine = metrics(s.with_values({'integration.dt': 0.0005}), 3.0).advance_ratio
     assert abs(coarse - fine) / fine < 0.02
@@ -55,7 +55,7 @@ def test_very_stiff_surfaces_and_high_cof_approach_the_rigid_surface_speed():
     # A rigid surface is touched only at the crests: the gap just under the robot's height.
     def ar(scale):
         s = Scenario().with_values({
-            'scenario.gap': 0.056, 'surface.friction_coefficient': 1.5,
+            'conditions.gap': 0.056, 'surface.friction_coefficient': 1.5,
             'surface.normal_stiffness': 15500.0 * scale,
             'surface.tangential_stiffness': 1082.0 * scale,
             'integration.dt': 0.001 / math.sqrt(scale)})
@@ -66,8 +66,8 @@ def test_very_stiff_surfaces_and_high_cof_approach_the_rigid_surface_speed():
 
 def test_scenarios_stepped_together_match_each_stepped_alone():
     scenarios = [Scenario().with_values(v) for v in (
-        {'scenario.slope': 0.3}, {'surface.friction_coefficient': 0.4, 'scenario.gap': 0.05},
-        {'scenario.frequency': 1.7, 'surface.tangential_stiffness': 500.0})]
+        {'conditions.slope': 0.3}, {'surface.friction_coefficient': 0.4, 'conditions.gap': 0.05},
+        {'conditions.frequency': 1.7, 'surface.tangential_stiffness': 500.0})]
     together = simulate(scenarios, 1.0).q
     for i, s in enumerate(scenarios):
         alone = simulate(s, 1.0).q[:, 0]
@@ -86,7 +86,7 @@ def test_set_scenarios_changes_conditions_at_once_and_keeps_the_state():
     x = sim.q[0, 0]
     with pytest.raises(Exception, match='cannot change during a run'):
         sim.set_scenarios([Scenario().with_values({'robot.mass': 0.5})])
-    sim.set_scenarios([Scenario().with_values({'scenario.frequency': 0.0})])
+    sim.set_scenarios([Scenario().with_values({'conditions.frequency': 0.0})])
     assert sim.q[0, 0] == x
     sim.run(1.0)
     assert abs(sim.q[3, 0]) < 0.01       # the wave stopped: the robot stops

@@ -14,7 +14,7 @@ def test_defaults_are_model_md_section_8():
     assert s.robot.inertia == pytest.approx(0.313 * 0.35 ** 2 / 12)
     assert s.surface.normal_stiffness == 15500 and s.surface.tangential_stiffness == 1082
     assert s.surface.friction_coefficient == 1.0 and s.surface.restitution == 0.9
-    assert s.scenario.gap == 0.045 and s.integration.dt == 0.001 and s.frequency == 1.0
+    assert s.conditions.gap == 0.045 and s.integration.dt == 0.001 and s.frequency == 1.0
 
 
 @pytest.mark.parametrize('make, name, value', [
@@ -25,8 +25,8 @@ def test_defaults_are_model_md_section_8():
     (lambda: IntegrationParams(dt=0.0), 'integration.dt', '0'),
     (lambda: SurfaceParams(friction_coefficient=-0.1), 'surface.friction_coefficient', '-0.1'),
     (lambda: SurfaceParams(restitution=1.5), 'surface.restitution', '1.5'),
-    (lambda: ConditionParams(slope=2.0), 'scenario.slope', '2'),
-    (lambda: Scenario(scenario=ConditionParams(gap=0.02)), 'scenario.gap', '0.02'),
+    (lambda: ConditionParams(slope=2.0), 'conditions.slope', '2'),
+    (lambda: Scenario(conditions=ConditionParams(gap=0.02)), 'conditions.gap', '0.02'),
 ])
 def test_invalid_values_name_parameter_value_and_range(make, name, value):
     with pytest.raises(ParameterError) as err:
@@ -43,9 +43,9 @@ def test_non_numbers_and_nan_are_refused():
 
 
 def test_with_values_validates_and_refuses_unknown_names():
-    s = Scenario().with_values({'scenario.slope': math.radians(30), 'motor.voltage': 6.0})
-    assert s.scenario.slope == pytest.approx(math.radians(30))
+    s = Scenario().with_values({'conditions.slope': math.radians(30), 'motor.voltage': 6.0})
+    assert s.conditions.slope == pytest.approx(math.radians(30))
     assert s.frequency == pytest.approx(6.0 * s.motor.hz_per_volt)
     with pytest.raises(ParameterError, match='unknown parameter'):
         Scenario().with_values({'surface.stiffness': 1.0})
-    assert set(Scenario().flat()) >= {'robot.mass', 'surface.normal_stiffness', 'scenario.gap'}
+    assert set(Scenario().flat()) >= {'robot.mass', 'surface.normal_stiffness', 'conditions.gap'}

@@ -10,7 +10,7 @@ from saw_ros.core import worm as W
 def scen(kt=1082.0, mu=1.0, slope_deg=0.0):
     return Scenario().with_values({'surface.tangential_stiffness': kt,
                                    'surface.friction_coefficient': mu,
-                                   'scenario.slope': math.radians(slope_deg)})
+                                   'conditions.slope': math.radians(slope_deg)})
 
 
 def test_calibration_reproduces_the_papers_worm_numbers():

@@ -41,7 +41,7 @@ QUICK = Grid((0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0),
 # A wave point: (slope deg, gap mm, kt N/m, mu). The defaults are the paper's set-up.
 Point = Tuple[float, float, float, float]
 DEFAULT_KT = Scenario().surface.tangential_stiffness
-DEFAULT_GAP_MM = Scenario().scenario.gap * 1000.0
+DEFAULT_GAP_MM = Scenario().conditions.gap * 1000.0
 DEFAULT_MU = Scenario().surface.friction_coefficient
 FIG21_KT = round(worm_model.FIGURE21_STIFFNESS, 1)
 
@@ -52,7 +52,8 @@ def point(slope=0.0, gap=DEFAULT_GAP_MM, kt=DEFAULT_KT, mu=DEFAULT_MU) -> Point:
 
 def scenario_of(p: Point, base: Scenario = Scenario()) -> Scenario:
     slope, gap, kt, mu = p
-    return base.with_values({'scenario.slope': math.radians(slope), 'scenario.gap': gap / 1000.0,
+    return base.with_values({'conditions.slope': math.radians(slope),
+                             'conditions.gap': gap / 1000.0,
                              'surface.tangential_stiffness': kt,
                              'surface.friction_coefficient': mu})
 

@@ -33,9 +33,9 @@ def add_arguments(p):
 
 
 def run(args):
-    scenario = Scenario().with_values({'scenario.slope': math.radians(args.slope_deg),
-                                       'scenario.gap': args.gap,
-                                       'scenario.frequency': args.frequency})
+    scenario = Scenario().with_values({'conditions.slope': math.radians(args.slope_deg),
+                                       'conditions.gap': args.gap,
+                                       'conditions.frequency': args.frequency})
     try:
         camera = CameraModel(width=args.width, height=args.height, scale=args.px_per_m,
                              slope=math.radians(args.slope_deg), center_y=args.gap / 2)
@@ -44,7 +44,7 @@ def run(args):
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     run_ = simulate_run(scenario, args.duration + 0.1)
-    renderer = Renderer(scenario.robot, scenario.scenario.gap, camera, options)
+    renderer = Renderer(scenario.robot, scenario.conditions.gap, camera, options)
     try:
         with VideoWriter(args.output, args.fps, (camera.width, camera.height)) as writer:
             n = int(args.duration * args.fps)

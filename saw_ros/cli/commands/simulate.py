@@ -43,12 +43,12 @@ def add_scenario_arguments(p):
 def scenario_from_args(args) -> Scenario:
     scenario = load_scenario(args.params_file) if args.params_file else Scenario()
     values = {}
-    simple = {'slope_deg': ('scenario.slope', math.radians),
-              'gap_mm': ('scenario.gap', lambda v: v / 1000.0),
+    simple = {'slope_deg': ('conditions.slope', math.radians),
+              'gap_mm': ('conditions.gap', lambda v: v / 1000.0),
               'kn': ('surface.normal_stiffness', float), 'kt': ('surface.tangential_stiffness', float),
               'mu': ('surface.friction_coefficient', float),
-              'external_force': ('scenario.external_force', float),
-              'frequency': ('scenario.frequency', float), 'voltage': ('motor.voltage', float)}
+              'external_force': ('conditions.external_force', float),
+              'frequency': ('conditions.frequency', float), 'voltage': ('motor.voltage', float)}
     for attr, (name, convert) in simple.items():
         value = getattr(args, attr)
         if value is not None:
@@ -100,7 +100,7 @@ def run(args):
             return 3
     q = tr.q[:, 0]
     m = analyse(tr.t, q, scenario.robot, scenario.frequency)
-    c = scenario.scenario
+    c = scenario.conditions
     print(f'scenario: slope {math.degrees(c.slope):.1f} deg, gap {c.gap * 1000:.1f} mm, '
           f'f {scenario.frequency:.3f} Hz, kn {scenario.surface.normal_stiffness:g} N/m^'
           f'{scenario.surface.hertz_exponent:g}, kt {scenario.surface.tangential_stiffness:g} N/m, '

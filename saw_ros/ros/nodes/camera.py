@@ -50,7 +50,7 @@ PARAMETERS = (
     ('fov', 0.0, 'horizontal field of view [rad]; > 0 overrides scale'),
     ('distance', 1.0, 'camera to the plane of motion [m]: focal length f = scale * distance'),
     ('slope', 0.0, 'slope of the surfaces as the level camera sees them [rad]; set it to the '
-                   "simulator's scenario.slope"),
+                   "simulator's conditions.slope"),
     ('center_x', 0.33, 'surface-frame x seen at the image centre [m]'),
     ('center_y', 0.0225, 'surface-frame y seen at the image centre [m]'),
     ('noise', 0.0, 'sensor noise, standard deviation [grey levels]'),
@@ -117,10 +117,10 @@ class CameraNode(Node):
         try:
             # Only what the drawing needs: the robot geometry and the gap.
             exclude = [n for n, _, _ in Scenario().describe()
-                       if not (n.startswith('robot.') or n == 'scenario.gap')]
+                       if not (n.startswith('robot.') or n == 'conditions.gap')]
             self.params = ScenarioParameters(self, exclude=exclude,
                                              frozen={'robot': 'restart the camera',
-                                                     'scenario.gap': 'restart the camera'})
+                                                     'conditions.gap': 'restart the camera'})
             floats = {n: d for n, d, _ in PARAMETERS if isinstance(d, float)}
             accept_integers_for_doubles(self, floats, floats)
             for name, default, text in PARAMETERS:
@@ -140,7 +140,7 @@ class CameraNode(Node):
             if not p['fps'] > 0:
                 raise ValueError(f"fps = {p['fps']} must be > 0")
             scenario = self.params.scenario
-            self.renderer = Renderer(scenario.robot, scenario.scenario.gap, camera, options)
+            self.renderer = Renderer(scenario.robot, scenario.conditions.gap, camera, options)
             self.writer = VideoWriter(p['video_path'], p['fps'], (camera.width, camera.height)) \
                 if p['video_path'] else None
         except (ParameterError, ParameterException, ValueError, VideoError) as exc:

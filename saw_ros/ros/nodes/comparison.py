@@ -226,7 +226,7 @@ class ComparisonNode(Node):
 
     def summary(self):
         r = self.comparator.result()
-        c = self.scenario.scenario
+        c = self.scenario.conditions
         out = {'status': r.status, 'slope_deg': math.degrees(c.slope),
                'voltage_V': self.scenario.motor.voltage, 'frequency_hz': r.frequency,
                'v_theory_m_s': r.v_theory, 'steady_from_s': r.steady_from,

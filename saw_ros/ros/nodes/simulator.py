@@ -132,7 +132,8 @@ class SimulatorNode(Node):
         self.get_logger().info(
             f'simulating at {1.0 / self.dt:g} Hz of simulated time, real_time_factor '
             f'{self._rtf:g}, duration {self._duration:g} s (0 = until stopped), helix '
-            f'{scenario.frequency:g} Hz, slope {math.degrees(scenario.scenario.slope):g} deg')
+            f'{scenario.frequency:g} Hz (from {scenario.frequency_source}), slope '
+            f'{math.degrees(scenario.conditions.slope):g} deg')
 
     # -- parameters ----------------------------------------------------------------------------
     @staticmethod
@@ -177,8 +178,9 @@ class SimulatorNode(Node):
         self._omega = 2.0 * math.pi * scenario.frequency
         self.get_logger().info(
             f'parameters changed at t = {self.steps * self.dt:.3f} s: helix '
-            f'{scenario.frequency:g} Hz, slope {math.degrees(scenario.scenario.slope):g} deg, '
-            f'external force {scenario.scenario.external_force:g} N, mu '
+            f'{scenario.frequency:g} Hz (from {scenario.frequency_source}), slope '
+            f'{math.degrees(scenario.conditions.slope):g} deg, '
+            f'external force {scenario.conditions.external_force:g} N, mu '
             f'{scenario.surface.friction_coefficient:g}')
 
     # -- services ------------------------------------------------------------------------------
