@@ -12,6 +12,7 @@ from sensor_msgs.msg import JointState, PointCloud2, PointField
 
 from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator, link_geometry
+from saw_ros.core.kinematics import JointTable
 
 
 # -- rclpy message builders: the reference every CDR encoder below is checked against ---------
@@ -182,10 +183,10 @@ def test_wrench_from_contacts_matches_the_core_forces():
 
 def test_joint_table_matches_link_geometry():
     robot = Scenario().robot
-    table = conv.JointTable(robot)
+    table = JointTable(robot)
     for phase in (0.0, 0.7, 3.0, 6.2):
         geo = link_geometry(robot, phase)
-        angles, rates = table.at(phase, omega=2 * math.pi)
+        angles, rates = table.angles_and_rates(phase, omega=2 * math.pi)
         np.testing.assert_allclose(angles[0], geo.base_angle, atol=1e-5)
         np.testing.assert_allclose(angles[1:], geo.angles, atol=1e-6)
         # Rates: derivative of the exact geometry along the phase (central difference); the
@@ -196,7 +197,7 @@ def test_joint_table_matches_link_geometry():
                                    * 2 * math.pi, atol=1e-2)
     names = conv.joint_names(robot.wave_links)
     assert names[:3] == ['helix', 'base_link_joint', 'link_00'] and names[-1] == 'link_18'
-    angles, rates = table.at(0.7, 2 * math.pi)
+    angles, rates = table.angles_and_rates(0.7, 2 * math.pi)
     msg = joint_state_msg(names, 0.7, 2 * math.pi, angles, rates, 3_000_000)
     assert len(msg.name) == len(msg.position) == len(msg.velocity) == 21
     assert msg.position[0] == 0.7 and msg.velocity[0] == 2 * math.pi
@@ -215,7 +216,7 @@ def test_cdr_encoders_match_rclpy_serialization():
     ns = 12_345_000_000
     robot = Scenario().robot
     names = conv.joint_names(robot.wave_links)
-    angles, rates = conv.JointTable(robot).at(1.3, 2 * math.pi)
+    angles, rates = JointTable(robot).angles_and_rates(1.3, 2 * math.pi)
     points = _hand_points()
     cases = [
         (conv.clock_cdr(ns), clock_msg(ns), Clock),

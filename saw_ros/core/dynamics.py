@@ -145,11 +145,7 @@ class Simulator:
     def step(self) -> None:
         """One semi-implicit Euler step of every scenario."""
         table, contacts, q = self.table, self.contacts, self.q
-        u = self.phase * table.scale
-        i = u.astype(np.intp)
-        body = np.take(table.slopes, i, axis=0, out=self._body)
-        body *= (u - i)[:, None]
-        body += np.take(table.points, i, axis=0, out=self._gathered)   # tips in the body frame
+        body = table.at(self.phase, out=self._body, work=self._gathered)  # tips, body frame
         np.exp(1j * q[2], out=self._rot[:, 0])
         body *= self._rot                                        # rotated offsets from the COM
         bx, by = body.real, body.imag

@@ -142,32 +142,6 @@ def contact_wrench(points: np.ndarray, x: float, y: float, theta: float):
 def joint_names(wave_links: int) -> list:
     return ['helix', 'base_link_joint'] + [f'link_{i:02d}' for i in range(wave_links)]
 
-class JointTable:
-    """Base-link and wave-link angles tabulated over one wave cycle, linearly interpolated.
-
-    ``link_geometry`` solves the base link's angle by Newton iterations: too slow for every step
-    at 1 kHz. 4096 samples keep the interpolation error under 1e-5 rad.
-    """
-
-    def __init__(self, robot, samples: int = 4096):
-        from saw_ros.core.kinematics import link_geometry
-        self.samples = samples
-        phases = np.linspace(0.0, 2.0 * np.pi, samples + 1)
-        geo = link_geometry(robot, phases)
-        table = np.concatenate([geo.base_angle[:, None], geo.angles], axis=1)
-        self.scale = samples / (2.0 * np.pi)
-        self.points = np.ascontiguousarray(table[:-1])
-        self.slopes = np.diff(table, axis=0)
-        self.derivative = self.slopes * self.scale      # d angle / d phase, per sample
-
-    def at(self, phase: float, omega: float = 0.0):
-        """([base_angle, link_00, ...], their rates in rad/s) at ``phase`` for helix speed
-        ``omega`` (rad/s)."""
-        u = (phase % (2.0 * np.pi)) * self.scale
-        i = min(int(u), self.samples - 1)
-        return self.points[i] + (u - i) * self.slopes[i], self.derivative[i] * omega
-
-
 # -- the same messages as CDR bytes ---------------------------------------------------------------
 # rclpy converts a Python message to C field by field: 15-40 us per message here, against 2-4 us
 # to publish bytes. At six messages per step the simulator therefore publishes serialized

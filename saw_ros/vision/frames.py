@@ -30,7 +30,8 @@ from typing import Callable, Iterable, NamedTuple, Optional, Sequence
 import cv2
 import numpy as np
 
-from saw_ros.core.kinematics import base_link_end, hinge_x, link_geometry
+from saw_ros.core.kinematics import (PhaseTable, base_link_end, cycle_phases, hinge_x,
+                                     link_geometry)
 from saw_ros.core.params import RobotParams
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.scene import SceneOptions, distortion_maps, draw_clutter, gradient_map, jpeg
@@ -86,30 +87,23 @@ class RenderOptions:
             raise ValueError(f'render marker_radius = {self.marker_radius!r} must be > 0')
 
 
-class _GeometryTable:
-    """Body-frame link geometry tabulated over one wave cycle (linear interpolation)."""
+class _GeometryTable(PhaseTable):
+    """Body-frame link geometry over one wave cycle: centres, directions, base-link end, up and
+    down tips side by side in one complex table."""
 
     def __init__(self, robot: RobotParams, samples: int = 1024):
-        phases = np.linspace(0.0, 2.0 * np.pi, samples + 1)
-        geo = link_geometry(robot, phases)
-        self.scale = samples / (2.0 * np.pi)
-        self.samples = samples
-        self.centres = geo.centres
-        self.direction = np.exp(1j * geo.angles)
-        self.base_end = base_link_end(robot, geo.base_angle)
-        self.up = geo.up_tips
-        self.down = geo.down_tips
+        geo = link_geometry(robot, cycle_phases(samples))
+        self.n = robot.wave_links
+        super().__init__(np.concatenate(
+            [geo.centres, np.exp(1j * geo.angles), base_link_end(robot, geo.base_angle)[:, None],
+             geo.up_tips, geo.down_tips], axis=1), samples)
 
-    def at(self, phase: float):
-        u = (phase % (2.0 * np.pi)) * self.scale
-        i = min(int(u), self.samples - 1)
-        w = u - i
-
-        def lerp(a):
-            return a[i] + w * (a[i + 1] - a[i])
-        d = lerp(self.direction)
-        return lerp(self.centres), d / np.abs(d), lerp(self.base_end), lerp(self.up), \
-            lerp(self.down)
+    def geometry(self, phase: float):
+        """(centres, unit directions, base-link end, up tips, down tips) at ``phase``."""
+        row = self.at(phase % (2.0 * np.pi))
+        n = self.n
+        d = row[n:2 * n]
+        return row[:n], d / np.abs(d), row[2 * n], row[2 * n + 1:3 * n + 1], row[3 * n + 1:]
 
 
 def _rect(x0, x1, y0, y1):
@@ -247,7 +241,7 @@ class Renderer:
         clutter = self.scene.clutter
         if clutter:
             draw_clutter(out, self.camera, clutter, t, 'wall', self._disc)
-        centres, direction, base_end, up, down = self._table.at(pose.phase)
+        centres, direction, base_end, up, down = self._table.geometry(pose.phase)
         com = complex(pose.x, pose.y)
         rot = complex(math.cos(pose.theta), math.sin(pose.theta))
         x0, x1 = self.camera.visible_x_range(0.1)

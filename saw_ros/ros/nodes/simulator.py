@@ -39,6 +39,7 @@ from std_srvs.srv import Trigger
 
 from saw_ros.ros import conversions as conv
 from saw_ros.core.dynamics import DivergenceError, Simulator
+from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
 from saw_ros.ros.params import ScenarioParameters, accept_integers_for_doubles
 from saw_ros.ros.runtime import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node, spin_node, with_depth
@@ -106,7 +107,7 @@ class SimulatorNode(Node):
         scenario = self.params.scenario
         self.dt = scenario.integration.dt
         self._omega = 2.0 * math.pi * scenario.frequency
-        self._joints = conv.JointTable(scenario.robot)
+        self._joints = JointTable(scenario.robot)
         self._joint_names = conv.joint_names(scenario.robot.wave_links)
 
         self._publishers_all = tuple(
@@ -268,7 +269,7 @@ class SimulatorNode(Node):
                                      contacts.tangential[0], contacts.touching[0],
                                      contacts.slipping[0])
         fx, fy, mz = conv.contact_wrench(points, x, y, theta)
-        angles, rates = self._joints.at(float(sim.phase[0]), self._omega)
+        angles, rates = self._joints.angles_and_rates(float(sim.phase[0]), self._omega)
         # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
         self._pub_clock.publish(conv.clock_cdr(ns))
         self._pub_pose.publish(conv.pose_cdr(x, y, theta, ns))
