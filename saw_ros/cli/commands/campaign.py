@@ -7,6 +7,9 @@ examples:
   saw-ros campaign                                   # the paper's 20 conditions -> out/campaign
   saw-ros campaign --slopes=-20,0,20 --voltages 6,7 --out /tmp/c   # "=" before negatives
   saw-ros campaign --set motor.hz_per_volt=0.22      # calibrate the motor
+  saw-ros campaign --videos samples/footage/manifest.csv --out out/footage
+      # your robot's footage: one row per run (video, slope_deg, voltage_V or frequency_hz,
+      # px_per_m or marker_spacing_m, notes); each video tracked, the condition simulated
 """
 import sys
 import time
@@ -37,6 +40,10 @@ def add_arguments(p):
     p.add_argument('--voltages', default=','.join(f'{v:g}' for v in PAPER_VOLTAGES),
                    help='motor voltages, comma-separated (default: 4,5,6,7)')
     p.add_argument('--out', type=Path, default=Path('out/campaign'), help='output folder')
+    p.add_argument('--videos', type=Path, default=None, metavar='MANIFEST.csv',
+                   help='recorded runs instead of the virtual camera: a CSV with columns video, '
+                   'slope_deg, voltage_V or frequency_hz, px_per_m or marker_spacing_m, notes '
+                   '(paths relative to it); --slopes/--voltages/--reference do not apply')
     p.add_argument('--reference', type=Path, default=None,
                    help='CSV of measured speeds/ARs (default: the paper\'s stated points)')
     p.add_argument('--workers', type=int, default=2, help='parallel processes (2)')
@@ -44,7 +51,39 @@ def add_arguments(p):
     add_scenario_arguments(p)
 
 
+def run_videos(args):
+    """--videos: track each recorded run, simulate its condition, compare (analysis.footage)."""
+    from saw_ros.analysis.footage import ManifestError, load_manifest, run_footage, \
+        write_footage_outputs
+    from saw_ros.cli.errors import UserError
+    from saw_ros.vision.video import VideoError
+    base = scenario_from_args(args)
+    start = time.perf_counter()
+    try:
+        runs = load_manifest(args.videos)
+        results = run_footage(runs, base)
+    except (ManifestError, VideoError) as exc:
+        raise UserError(str(exc)) from exc
+    paths = write_footage_outputs(results, args.out)
+    summary = summarise([r.condition for r in results])
+    print(f'{len(results)} videos in {time.perf_counter() - start:.1f} s')
+    for r in results:
+        c, m = r.condition, r.measured
+        print(f'  {r.run.video.name}: {c.slope_deg:g} deg, {c.frequency:.3f} Hz: measured '
+              f'{100 * c.v_tracked:.3f} cm/s (AR {c.ar_tracked:.4f}, {m.frames_ok}/{m.frames} '
+              f'frames ok), simulated {100 * c.v_sim:.3f} cm/s (AR {c.ar_sim:.4f}): '
+              f'{100 * c.relative_error:.2f} %')
+    for v, e in summary['mean_relative_error_by_voltage'].items():
+        print(f'  {v:g} V: mean relative error (footage vs simulation) {100 * e:.2f} %')
+    print(f'  overall: {100 * summary["mean_relative_error"]:.2f} %')
+    for name, path in paths.items():
+        print(f'{name:10s} {path}')
+    return 0
+
+
 def run(args):
+    if args.videos is not None:
+        return run_videos(args)
     slopes = _numbers(args.slopes, 'slopes')
     voltages = _numbers(args.voltages, 'voltages')
     base = scenario_from_args(args)

@@ -25,16 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
-from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus, scale_from_spacing
-from saw_ros.vision.video import VideoError, read_frames, video_info
+from saw_ros.vision.offline import SCALE_FRAMES, measure_scale, track_video  # noqa: F401
+from saw_ros.vision.tracker import TrackerConfig, TrackStatus, scale_from_spacing
+from saw_ros.vision.video import VideoError
 from saw_ros.cli.errors import UserError
 
 HELP = 'track the two pink markers in a video: position, speed, pitch, steady speed'
 
 COLUMNS = ('frame', 't', 'status', 'front_x', 'front_y', 'back_x', 'back_y', 'x', 'y',
            'pitch_deg', 'vx', 'vy', 'vx_smoothed', 'vy_smoothed', 'steady_speed')
-SCALE_FRAMES = 120      # ok frames the first pass measures the marker spacing on
 
 
 def _numbers(kind, count=None):
@@ -104,31 +103,6 @@ def add_arguments(p):
 
 def config_from_args(args) -> TrackerConfig:
     return TrackerConfig(**{name: getattr(args, name) for name, _, _ in config_options()})
-
-
-def track_video(path, camera_kw: dict, config: TrackerConfig, fps: float = 0.0,
-                stop_after_ok: int = 0):
-    """FrameResults of every frame of a video (or until ``stop_after_ok`` ok frames); the
-    camera's size comes from the file."""
-    _, _, width, height = video_info(path)
-    tracker = Tracker(CameraModel(width=width, height=height, **camera_kw), config)
-    results = []
-    for _, t, frame in read_frames(path, fps or None):
-        results.append(tracker.update(frame, t))
-        if stop_after_ok and tracker.counters.ok >= stop_after_ok:
-            break
-    return results, tracker
-
-
-def measure_scale(path, camera_kw: dict, config: TrackerConfig, spacing: float,
-                  fps: float = 0.0):
-    """(px per metre, frames, spread px) making the markers ``spacing`` m apart, from the first
-    SCALE_FRAMES frames with both markers (the spacing in pixels is not known yet: the pair is
-    picked out by the robot's line, size, colour and motion), or None."""
-    blind = dataclasses.replace(config, marker_spacing=None, marker_diameter=None)
-    kw = dict(camera_kw, scale=1000.0)          # a placeholder: pixels are what is measured
-    results, _ = track_video(path, kw, blind, fps, stop_after_ok=SCALE_FRAMES)
-    return scale_from_spacing(results, spacing)
 
 
 def _cells(k, r):

@@ -1,0 +1,59 @@
+"""saw-ros campaign --videos (issue 12): the sample manifest's footage (made from our own
+simulation, one clip cluttered) tracked and compared with the simulated conditions: relative
+errors under 2 %, figures and tables written; manifest errors refused with the row."""
+import csv
+from pathlib import Path
+
+import pytest
+
+from saw_ros.analysis.footage import ManifestError, TARGET_COLUMNS, load_manifest
+from saw_ros.cli.main import main
+
+SAMPLES = Path(__file__).resolve().parents[2] / 'samples' / 'footage' / 'manifest.csv'
+
+
+def test_sample_manifest_through_the_command(tmp_path, capsys):
+    out = tmp_path / 'out'
+    assert main(['campaign', '--videos', str(SAMPLES), '--out', str(out), '--quiet']) == 0
+    text = capsys.readouterr().out
+    assert '4 videos' in text
+    for name in ('figure17_speed.png', 'figure18_ar.png', 'campaign.csv', 'campaign.md',
+                 'footage.csv', 'footage.md'):
+        assert (out / name).stat().st_size > 0, name
+    with open(out / 'footage.csv', newline='') as f:
+        rows = list(csv.DictReader(f))
+    assert tuple(rows[0]) == TARGET_COLUMNS
+    assert len(rows) == 4
+    for row in rows:
+        assert float(row['relative_error']) < 0.02, row
+        assert int(row['frames_ok']) >= int(row['frames']) - 2, row
+        frames = out / 'frames' / (Path(row['video']).stem + '.csv')
+        with open(frames, newline='') as f:
+            statuses = [r['status'] for r in csv.DictReader(f)]
+        assert len(statuses) == int(row['frames']) and statuses.count('ok') == int(
+            row['frames_ok'])
+    assert {r['scale_from'] for r in rows} == {'px_per_m', 'marker_spacing'}
+
+
+def test_manifest_errors_name_the_row(tmp_path):
+    bad = tmp_path / 'm.csv'
+    for name in ('a.mp4', 'b.mp4'):
+        (tmp_path / name).write_bytes(b'')
+    bad.write_text('video,slope_deg,voltage_V,frequency_hz,px_per_m,marker_spacing_m,notes\n'
+                   'a.mp4,0,6,,600,,\n'
+                   'b.mp4,0,,,600,,\n')
+    with pytest.raises(ManifestError, match='row 3.*voltage_V'):
+        load_manifest(bad)
+    bad.write_text('video,slope_deg,voltage_V\na.mp4,0,6\n')
+    with pytest.raises(ManifestError, match='scale'):
+        load_manifest(bad)
+    bad.write_text('video,slope,voltage_V\n')
+    with pytest.raises(ManifestError, match='columns'):
+        load_manifest(bad)
+
+
+def test_missing_video_is_a_user_error(tmp_path, capsys):
+    manifest = tmp_path / 'm.csv'
+    manifest.write_text('video,slope_deg,voltage_V,px_per_m\nnothing.mp4,0,6,600\n')
+    assert main(['campaign', '--videos', str(manifest), '--out', str(tmp_path / 'o')]) != 0
+    assert 'nothing.mp4' in capsys.readouterr().err
