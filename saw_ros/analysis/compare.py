@@ -25,7 +25,7 @@ from saw_ros.core.metrics import STEADY_CCI, steady_state_start
 from saw_ros.core.params import RobotParams
 
 
-class _Series:
+class _GrowingColumns:
     """A growing (t, value...) record, amortised O(1) appends."""
 
     def __init__(self, columns: int):
@@ -89,8 +89,8 @@ class RunComparator:
         self.frequency = frequency
         self.threshold = threshold
         self.min_cycles = min_cycles
-        self.truth = _Series(2)
-        self.tracked = _Series(2)
+        self.truth = _GrowingColumns(2)
+        self.tracked = _GrowingColumns(2)
 
     def reset(self) -> None:
         self.truth.clear()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import struct
 
+NS_PER_S = 1_000_000_000     # nanoseconds per second: the one name for it in the ROS layer
 _LITTLE = (0x00, 0x01)
 _HEADER = 4
 
@@ -37,7 +38,7 @@ def stamp_ns(data: bytes) -> int:
     """header.stamp in ns of any message that starts with a std_msgs/Header (or is a Clock)."""
     e = _prefix(data)
     sec, nanosec = struct.unpack_from(e + 'iI', data, _HEADER)
-    return sec * 1_000_000_000 + nanosec
+    return sec * NS_PER_S + nanosec
 
 
 def pose_stamped_ns(data: bytes):
@@ -46,7 +47,7 @@ def pose_stamped_ns(data: bytes):
     sec, nanosec, length = struct.unpack_from(e + 'iII', data, _HEADER)
     offset = _align(12 + length, 8)
     x, y, _z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, _HEADER + offset)
-    return sec * 1_000_000_000 + nanosec, x, y, 2.0 * math.atan2(qz, qw)
+    return sec * NS_PER_S + nanosec, x, y, 2.0 * math.atan2(qz, qw)
 
 
 class JointPosition:
@@ -93,7 +94,7 @@ class JointPosition:
             self._key, self._at = self._layout(data, e)
         at = self._at
         value = None if at is None else struct.unpack_from(e + 'd', data, _HEADER + at)[0]
-        return sec * 1_000_000_000 + nanosec, value
+        return sec * NS_PER_S + nanosec, value
 
 
 class ImageView:
@@ -107,7 +108,7 @@ class ImageView:
         e = _prefix(raw)
         view = memoryview(raw)
         sec, nanosec, n = struct.unpack_from(e + 'iII', raw, _HEADER)
-        self.stamp_ns = sec * 1_000_000_000 + nanosec
+        self.stamp_ns = sec * NS_PER_S + nanosec
         self.frame_id = bytes(view[_HEADER + 12:_HEADER + 12 + n]).rstrip(b'\0').decode()
         offset = _align(12 + n, 4)
         self.height, self.width, n = struct.unpack_from(e + 'III', raw, _HEADER + offset)
@@ -173,6 +174,6 @@ class ImageCdr:
         view = memoryview(pixels).cast('B')
         if view.nbytes != self._size:
             raise ValueError(f'{view.nbytes} pixel bytes, expected {self._size}')
-        sec, nanosec = divmod(nanoseconds, 1_000_000_000)
+        sec, nanosec = divmod(nanoseconds, NS_PER_S)
         return b''.join((ENCAPSULATION, _STAMP_LE.pack(sec, nanosec), self._head,
                          _U32_LE.pack(self._size), view))

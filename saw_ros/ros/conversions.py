@@ -20,11 +20,10 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TwistStamped
 from sensor_msgs.msg import PointCloud2, PointField
 
-from saw_ros.ros.cdr import ENCAPSULATION, CdrWriter
+from saw_ros.ros.cdr import ENCAPSULATION, NS_PER_S, CdrWriter
 
 SURFACE_FRAME = 'surface'
 BODY_FRAME = 'base_link'
-NS_PER_S = 1_000_000_000
 
 # /saw/contacts point layout: 24 bytes a point, every field naturally aligned.
 CONTACT_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('normal_force', '<f4'),

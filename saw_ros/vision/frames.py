@@ -23,9 +23,10 @@ sensor noise). Order: draw (blur) -> brightness and lighting -> lens -> noise ->
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
-from typing import Callable, Iterable, NamedTuple, Optional, Sequence
+from typing import Callable, Iterable, List, NamedTuple, Optional, Sequence
 
 import cv2
 import numpy as np
@@ -318,6 +319,60 @@ class Renderer:
         if scene.compression == 'jpeg':
             frame = jpeg(frame, scene.quality)
         return frame
+
+
+class StampedSeries:
+    """Time-stamped samples arriving in order (stamps in ns, increasing), linearly
+    interpolated; keeps the last ``keep_ns`` (at least 4096 samples)."""
+
+    def __init__(self, keep_ns: int):
+        self.keep_ns = int(keep_ns)
+        self.t: List[int] = []
+        self.v: List[tuple] = []
+
+    def add(self, t: int, values: tuple) -> bool:
+        """Append; False (and cleared) when time went backwards (a replay restarted)."""
+        if self.t and t <= self.t[-1]:
+            if t == self.t[-1]:
+                return True
+            self.t.clear()
+            self.v.clear()
+            self.t.append(t)
+            self.v.append(values)
+            return False
+        self.t.append(t)
+        self.v.append(values)
+        if len(self.t) > 4096 and self.t[-1] - self.t[0] > self.keep_ns:
+            cut = bisect.bisect_left(self.t, self.t[-1] - self.keep_ns)
+            del self.t[:cut]
+            del self.v[:cut]
+        return True
+
+    @property
+    def last(self) -> int:
+        return self.t[-1]
+
+    def at(self, t: float, wrap: bool = False):
+        """Values at time t (ns, float); clamped to the ends. ``wrap``: angles modulo 2 pi."""
+        i = bisect.bisect_left(self.t, t)
+        if i <= 0:
+            return self.v[0]
+        if i >= len(self.t):
+            return self.v[-1]
+        t0, t1 = self.t[i - 1], self.t[i]
+        a, b = self.v[i - 1], self.v[i]
+        w = (t - t0) / (t1 - t0)
+        if wrap:
+            return tuple(x + w * ((y - x + math.pi) % (2 * math.pi) - math.pi)
+                         for x, y in zip(a, b))
+        return tuple(x + w * (y - x) for x, y in zip(a, b))
+
+
+def pose_between(poses: StampedSeries, phases: StampedSeries, t_ns: float) -> RobotPose:
+    """The pose at ``t_ns`` from streams of (x, y, theta) and (helix phase,) samples."""
+    x, y, theta = poses.at(t_ns)
+    (phase,) = phases.at(t_ns, wrap=True)
+    return RobotPose(x, y, theta, phase % (2.0 * math.pi))
 
 
 def pose_interpolator(t: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarray,

@@ -11,14 +11,11 @@ The drawing lives in ``saw_ros.vision.frames``; docs/vision.md lists topics and 
 """
 from __future__ import annotations
 
-import bisect
 import math
 import queue
 import sys
 import threading
 import time
-from typing import List
-
 import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
@@ -28,16 +25,17 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from geometry_msgs.msg import PoseStamped
 
 from saw_ros.ros import cdr
+from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros import conversions as conv
 from saw_ros.core.params import ParameterError, Scenario
 from saw_ros.ros.params import ScenarioParameters, accept_integers_for_doubles
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.frames import Renderer, RenderOptions, RobotPose
+from saw_ros.vision.frames import (Renderer, RenderOptions, RobotPose, StampedSeries,
+                                   pose_between)
 from saw_ros.vision.video import VideoError, VideoWriter
 from saw_ros.ros.runtime import (INPUT_DEPTH, STREAM_QOS, NodeFailure, image_publisher_qos, run_node,
                      with_depth)
 
-NS = 1_000_000_000
 KEEP = 2.0          # s of simulated time kept in the pose buffers
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)
 
@@ -64,51 +62,6 @@ PARAMETERS = (
     ('pose_topic', '/saw/pose', 'robot pose input (PoseStamped)'),
     ('joint_states_topic', '/saw/joint_states', "joint states input (JointState with 'helix')"),
 )
-
-
-class _Series:
-    """Time-stamped samples (stamps in ns, increasing) with linear interpolation."""
-
-    def __init__(self):
-        self.t: List[int] = []
-        self.v: List[tuple] = []
-
-    def add(self, t: int, values: tuple) -> bool:
-        """Append; False (and cleared) when time went backwards (a replay restarted)."""
-        if self.t and t <= self.t[-1]:
-            if t == self.t[-1]:
-                return True
-            self.t.clear()
-            self.v.clear()
-            self.t.append(t)
-            self.v.append(values)
-            return False
-        self.t.append(t)
-        self.v.append(values)
-        if len(self.t) > 4096 and self.t[-1] - self.t[0] > KEEP * NS:
-            cut = bisect.bisect_left(self.t, self.t[-1] - int(KEEP * NS))
-            del self.t[:cut]
-            del self.v[:cut]
-        return True
-
-    @property
-    def last(self) -> int:
-        return self.t[-1]
-
-    def at(self, t: float, wrap: bool = False):
-        """Values at time t (ns, float); clamped to the ends. ``wrap``: angles modulo 2 pi."""
-        i = bisect.bisect_left(self.t, t)
-        if i <= 0:
-            return self.v[0]
-        if i >= len(self.t):
-            return self.v[-1]
-        t0, t1 = self.t[i - 1], self.t[i]
-        a, b = self.v[i - 1], self.v[i]
-        w = (t - t0) / (t1 - t0)
-        if wrap:
-            return tuple(x + w * ((y - x + math.pi) % (2 * math.pi) - math.pi)
-                         for x, y in zip(a, b))
-        return tuple(x + w * (y - x) for x, y in zip(a, b))
 
 
 class CameraNode(Node):
@@ -148,10 +101,10 @@ class CameraNode(Node):
         self.camera = camera
         self.fps = float(p['fps'])
         self.frame_id = p['frame_id']
-        self.half_exposure_ns = options.exposure / 2.0 * NS
+        self.half_exposure_ns = options.exposure / 2.0 * NS_PER_S
         self.info = self._camera_info()
-        self._poses = _Series()       # (x, y, theta)
-        self._phases = _Series()      # (helix phase,)
+        self._poses = StampedSeries(int(KEEP * NS_PER_S))       # (x, y, theta)
+        self._phases = StampedSeries(int(KEEP * NS_PER_S))      # (helix phase,)
         self._next = None          # index of the next frame
         self.frames = 0
         self.received = {'poses': 0, 'joint_states': 0}
@@ -234,25 +187,23 @@ class CameraNode(Node):
 
     # -- frames --------------------------------------------------------------------------------
     def frame_ns(self, k: int) -> int:
-        return int(round(k * NS / self.fps))
+        return int(round(k * NS_PER_S / self.fps))
 
     def pose_at(self, t_ns: float) -> RobotPose:
-        x, y, theta = self._poses.at(t_ns)
-        (phase,) = self._phases.at(t_ns, wrap=True)
-        return RobotPose(x, y, theta, phase % (2.0 * math.pi))
+        return pose_between(self._poses, self._phases, t_ns)
 
     def _render_due(self) -> None:
         if not self._poses.t or not self._phases.t:
             return
         if self._next is None:
             start = max(self._poses.t[0], self._phases.t[0])
-            self._next = int(math.ceil(start * self.fps / NS - 1e-9))
+            self._next = int(math.ceil(start * self.fps / NS_PER_S - 1e-9))
         ready = min(self._poses.last, self._phases.last)
         while self.frame_ns(self._next) + self.half_exposure_ns <= ready:
             t_ns = self.frame_ns(self._next)
             t0 = time.perf_counter()
             frame = self.renderer.render(self.pose_at(t_ns), (),
-                                         lambda t: self.pose_at(t * NS), t_ns / NS)
+                                         lambda t: self.pose_at(t * NS_PER_S), t_ns / NS_PER_S)
             self.busy['render'] += time.perf_counter() - t0
             self._output(frame, t_ns)
             self._next += 1

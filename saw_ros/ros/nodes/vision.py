@@ -33,13 +33,13 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
 from saw_ros.ros import cdr
+from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros import conversions as conv
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
 from saw_ros.ros.runtime import (IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, NodeFailure, run_node,
                      with_depth)
 
-NS = 1_000_000_000
 PENDING = 30            # images kept while waiting for the first CameraInfo
 
 PARAMETERS = (
@@ -167,10 +167,10 @@ class VisionNode(Node):
         if self.tracker is None or (self.tracker.camera.width, self.tracker.camera.height) != (
                 w, h) or self.tracker.encoding != encoding:
             self.tracker = Tracker(self._camera(w, h), self.config, encoding)
-        elif self.tracker.last_time is not None and t_ns / NS <= self.tracker.last_time:
+        elif self.tracker.last_time is not None and t_ns / NS_PER_S <= self.tracker.last_time:
             self.get_logger().warning('image stamps went backwards: tracker restarted')
             self.tracker = Tracker(self.tracker.camera, self.config, encoding)
-        res = self.tracker.update(image, t_ns / NS)
+        res = self.tracker.update(image, t_ns / NS_PER_S)
         self.results += 1
         self._publish(res, t_ns)
 
