@@ -148,37 +148,26 @@ def test_contacts_cloud_is_self_describing_and_round_trips():
     assert (empty.width, len(empty.data), empty.row_step) == (0, 0, 0)
 
 
-def test_wrench_sums_forces_and_moments_about_the_com():
-    points = _hand_points()
-    x, y = 0.05, 0.0225
-    fx, fy, mz = conv.contact_wrench(points, x, y, 0.0)
-    # Bottom tip pushes up with 2 N, top tip down with 0.5 N; tangential -0.3 + 0.1.
-    assert math.isclose(fy, 2.0 - 0.5, rel_tol=1e-6)
-    assert math.isclose(fx, -0.2, rel_tol=1e-6)
-    rx = points['x'].astype(float) - x
-    ry = points['y'].astype(float) - y
-    expected = rx[0] * 2.0 - ry[0] * (-0.3) + rx[1] * (-0.5) - ry[1] * 0.1
-    assert math.isclose(mz, expected, rel_tol=1e-5)
-    # In base_link axes: the same force turned by -theta, the same moment.
-    fxb, fyb, mzb = conv.contact_wrench(points, x, y, 0.5)
+def test_wrench_is_the_core_net_force_and_moment_about_the_com():
+    """The simulator publishes the net force and moment the core accelerated the body with: the
+    sums over the tips in contact, the moment taken at the tip positions about the COM."""
+    sim = Simulator(Scenario())
+    for _ in range(299):
+        sim.step()
+    com = sim.q[:2, 0].copy()
+    sim.step()
+    c = sim.contacts
+    fx, fy, mz = sim.contact_wrench[:, 0]
+    side = sim.table.side
+    fx_i, fy_i = c.tangential[0], -side * c.normal[0]
+    assert math.isclose(fx, fx_i.sum(), rel_tol=1e-9, abs_tol=1e-9)
+    assert math.isclose(fy, fy_i.sum(), rel_tol=1e-9, abs_tol=1e-9)
+    r = sim.tip_positions[0] - complex(*com)
+    assert math.isclose(mz, (r.real * fy_i - r.imag * fx_i).sum(), rel_tol=1e-6, abs_tol=1e-9)
+    # In base_link axes: the same force turned by -theta.
+    fxb, fyb = conv.body_axes(fx, fy, 0.5)
     assert math.isclose(fxb, math.cos(0.5) * fx + math.sin(0.5) * fy, rel_tol=1e-9)
     assert math.isclose(fyb, -math.sin(0.5) * fx + math.cos(0.5) * fy, rel_tol=1e-9)
-    assert math.isclose(mzb, mz)
-
-
-def test_wrench_from_contacts_matches_the_core_forces():
-    """The core sums its own forces into the body's acceleration; rebuilding the net force from
-    the published points must give the same numbers (float32 aside)."""
-    sim = Simulator(Scenario())
-    for _ in range(300):
-        sim.step()
-    c = sim.contacts
-    points = conv.contact_points(sim.tip_positions[0], c.normal[0], c.tangential[0],
-                                 c.touching[0], c.slipping[0])
-    fx, fy, _ = conv.contact_wrench(points, sim.q[0, 0], sim.q[1, 0], 0.0)
-    side = sim.table.side
-    assert math.isclose(fx, c.tangential[0].sum(), rel_tol=1e-5, abs_tol=1e-6)
-    assert math.isclose(fy, -(side * c.normal[0]).sum(), rel_tol=1e-5, abs_tol=1e-6)
 
 
 def test_joint_table_matches_link_geometry():

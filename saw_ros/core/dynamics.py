@@ -72,6 +72,9 @@ class Simulator:
         self.phase = np.zeros(self.count)
         self.steps = 0
         self._forces = np.zeros((3, self.count))
+        # Net contact force (fx, fy, surface axes, N) and moment about the COM (N m) of the last
+        # step, per scenario: what the step accelerated the body with.
+        self.contact_wrench = np.zeros((3, self.count))
         self._rot = np.zeros((self.count, 1), complex)
         self._body = np.zeros((self.count, tips), complex)
         self._gathered = np.zeros((self.count, tips), complex)
@@ -167,6 +170,7 @@ class Simulator:
         m += self._work @ ones
         np.negative(m, out=forces[2])
         forces[1] *= -1.0
+        np.copyto(self.contact_wrench, forces)
         forces *= self._inv_inertia
         forces += self._bias_dt
         q[3:] += forces

@@ -122,21 +122,11 @@ def points_of(msg: PointCloud2) -> np.ndarray:
     return np.frombuffer(bytes(msg.data), dtype=dtype, count=count)
 
 
-def contact_wrench(points: np.ndarray, x: float, y: float, theta: float):
-    """Net contact force (fx, fy) and moment mz about the COM, in ``base_link`` axes.
-
-    Forces on the robot in the surface frame: tangential along +x, normal along +y on bottom
-    tips and -y on top tips, applied at the tip positions. The moment about z does not change
-    when the axes turn about z; the force is turned by -theta.
-    """
-    fx_i = points['tangential_force'].astype(float)
-    fy_i = np.where(points['surface'] == BOTTOM, 1.0, -1.0) * points['normal_force']
-    rx = points['x'] - x
-    ry = points['y'] - y
-    fx, fy = float(fx_i.sum()), float(fy_i.sum())
-    mz = float((rx * fy_i - ry * fx_i).sum())
+def body_axes(fx: float, fy: float, theta: float):
+    """A surface-frame force (fx, fy) in ``base_link`` axes: turned by -theta (a moment about z
+    does not change when the axes turn about z)."""
     c, s = math.cos(theta), math.sin(theta)
-    return c * fx + s * fy, -s * fx + c * fy, mz
+    return c * fx + s * fy, -s * fx + c * fy
 
 def joint_names(wave_links: int) -> list:
     return ['helix', 'base_link_joint'] + [f'link_{i:02d}' for i in range(wave_links)]

@@ -268,7 +268,8 @@ class SimulatorNode(Node):
         points = conv.contact_points(sim.tip_positions[0], contacts.normal[0],
                                      contacts.tangential[0], contacts.touching[0],
                                      contacts.slipping[0])
-        fx, fy, mz = conv.contact_wrench(points, x, y, theta)
+        fx, fy, mz = sim.contact_wrench[:, 0].tolist()      # the core's, surface axes
+        fx, fy = conv.body_axes(fx, fy, theta)
         angles, rates = self._joints.angles_and_rates(float(sim.phase[0]), self._omega)
         # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
         self._pub_clock.publish(conv.clock_cdr(ns))
