@@ -19,6 +19,7 @@ import numpy as np
 
 from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
 from saw_ros.core import Scenario, simulate
+from saw_ros.core.dynamics import fork_map
 
 PAPER_SLOPES_DEG = (-20.0, -10.0, 0.0, 10.0, 20.0)
 PAPER_VOLTAGES = (4.0, 5.0, 6.0, 7.0)
@@ -86,20 +87,11 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
         progress(0)
     jobs = [(s, trajectory.t, trajectory.q[:, i], fps, dict(camera or {}))
             for i, s in enumerate(scenarios)]
-    if workers > 1:
-        import multiprocessing
-        with multiprocessing.get_context('fork').Pool(workers) as pool:
-            tracked = []
-            for part in pool.imap(_track_condition, jobs):
-                tracked.append(part)
-                if progress is not None:
-                    progress(1)
-    else:
-        tracked = []
-        for job in jobs:
-            tracked.append(_track_condition(job))
-            if progress is not None:
-                progress(1)
+    tracked = []
+    for part in fork_map(_track_condition, jobs, workers):
+        tracked.append(part)
+        if progress is not None:
+            progress(1)
     reference = load_reference(reference_file) if reference_file else []
     results = []
     for (slope, volts), s, i, (times, xs, ok) in zip(grid, scenarios, range(len(grid)),

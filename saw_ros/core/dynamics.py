@@ -15,7 +15,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Callable, Optional, Sequence, Union
+from typing import Callable, Iterator, Optional, Sequence, Union
 
 import numpy as np
 
@@ -239,6 +239,19 @@ class Simulator:
         return Trajectory(t, q, self.scenarios, fn, ft)
 
 
+def fork_map(function, jobs: Sequence, workers: int) -> Iterator:
+    """``function(job)`` for every job, results in order: in this process when ``workers`` is
+    1, else in a pool of that many forked processes (the children inherit the imported modules
+    and tables, so nothing is rebuilt or pickled but the jobs and results)."""
+    if workers <= 1:
+        for job in jobs:
+            yield function(job)
+        return
+    import multiprocessing
+    with multiprocessing.get_context('fork').Pool(workers) as pool:
+        yield from pool.imap(function, jobs)
+
+
 def _run_chunk(job):
     scenarios, duration, record_every, contacts = job
     return Simulator(scenarios).run(duration, record_every, None, contacts)
@@ -258,18 +271,15 @@ def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[f
     workers = max(1, min(workers, len(scenarios) // 16))
     if workers == 1:
         return Simulator(scenarios).run(duration, record_every, progress, contacts)
-    import multiprocessing
     bounds = np.linspace(0, len(scenarios), workers + 1).astype(int)
     jobs = [(scenarios[a:b], duration, record_every, contacts)
             for a, b in zip(bounds[:-1], bounds[1:])]
     steps = int(round(duration / scenarios[0].integration.dt))
-    # fork: the children inherit the imported modules and the kinematics table.
-    with multiprocessing.get_context('fork').Pool(workers) as pool:
-        parts = []
-        for part in pool.imap(_run_chunk, jobs):
-            parts.append(part)
-            if progress is not None:
-                progress(steps)
+    parts = []
+    for part in fork_map(_run_chunk, jobs, workers):
+        parts.append(part)
+        if progress is not None:
+            progress(steps)
     cat = (lambda name: None if getattr(parts[0], name) is None else np.concatenate(
         [getattr(p, name) for p in parts], axis=1))
     return Trajectory(parts[0].t, cat('q'), scenarios, cat('normal'), cat('tangential'))
