@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict, Iterator, Optional, Tuple
+from typing import Any, Dict, Iterable, Iterator, Optional, Tuple
 
 
 class ParameterError(ValueError):
@@ -21,14 +21,31 @@ class ParameterError(ValueError):
 
 
 def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
-         high: Optional[float] = None, low_open: bool = False, high_open: bool = False):
-    """A dataclass field with its unit, range and description kept beside the default."""
+         high: Optional[float] = None, low_open: bool = False, high_open: bool = False,
+         **extra: Any):
+    """A dataclass field with its unit, range and description kept beside the default.
+
+    ``extra`` goes into the metadata as well (e.g. ``flag``: a command-line flag other than
+    ``--<name>``). Used by the Scenario's groups here and by the vision layer's dataclasses
+    (``TrackerConfig``, ``CameraModel``, ``RenderOptions``), so that node parameters, the
+    ``msg_config/`` files and the command line all read one definition."""
     return field(default=default, metadata={
         'unit': unit, 'description': description, 'low': low, 'high': high,
-        'low_open': low_open, 'high_open': high_open})
+        'low_open': low_open, 'high_open': high_open, **extra})
 
 
-def _range_text(meta: Dict[str, Any]) -> str:
+def spec_entries(cls, names: Optional[Iterable[str]] = None
+                 ) -> Iterator[Tuple[str, Any, Dict[str, Any]]]:
+    """(name, default, metadata) of the spec() fields of dataclass ``cls`` (all of them, or
+    ``names`` in that order)."""
+    fields = {f.name: f for f in dataclasses.fields(cls) if 'unit' in f.metadata}
+    for name in (fields if names is None else names):
+        f = fields[name]
+        yield name, f.default, dict(f.metadata)
+
+
+def range_text(meta: Dict[str, Any]) -> str:
+    """'[0, 179]', '(0, inf) m', ...: the allowed range of a spec() field, with its unit."""
     low, high = meta['low'], meta['high']
     left = '(' if meta['low_open'] or meta['low'] is None else '['
     right = ')' if meta['high_open'] or meta['high'] is None else ']'
@@ -54,16 +71,16 @@ class _Validated:
             if isinstance(f.default, int) and not isinstance(f.default, bool):
                 if not isinstance(value, int) or isinstance(value, bool):
                     raise ParameterError(f'{name} = {value!r} is invalid: must be an integer '
-                                         f'in {_range_text(f.metadata)}')
+                                         f'in {range_text(f.metadata)}')
             elif not isinstance(value, (int, float)):
                 raise ParameterError(f'{name} = {value!r} is invalid: must be a number in '
-                                     f'{_range_text(f.metadata)}')
+                                     f'{range_text(f.metadata)}')
             else:
                 object.__setattr__(self, f.name, float(value))
                 value = float(value)
             if not math.isfinite(value):
                 raise ParameterError(f'{name} = {value!r} is invalid: must be finite, in '
-                                     f'{_range_text(f.metadata)}')
+                                     f'{range_text(f.metadata)}')
             meta = f.metadata
             too_low = meta['low'] is not None and (
                 value <= meta['low'] if meta['low_open'] else value < meta['low'])
@@ -71,7 +88,7 @@ class _Validated:
                 value >= meta['high'] if meta['high_open'] else value > meta['high'])
             if too_low or too_high:
                 raise ParameterError(f'{name} = {value:g} is out of range: allowed '
-                                     f'{_range_text(meta)} ({meta["description"]})')
+                                     f'{range_text(meta)} ({meta["description"]})')
         self._check()
 
     def _check(self):

@@ -20,20 +20,27 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 ParameterType, SetParametersResult)
 from rclpy.parameter import Parameter
 
-from saw_ros.core.params import ParameterError, Scenario, _range_text
+from saw_ros.core.params import ParameterError, Scenario, range_text
 
 
-def descriptor(name: str, value, meta: Dict) -> ParameterDescriptor:
-    """ParameterDescriptor for one Scenario entry: description [unit], range, constraints."""
+_TYPES = ((bool, ParameterType.PARAMETER_BOOL), (int, ParameterType.PARAMETER_INTEGER),
+          (float, ParameterType.PARAMETER_DOUBLE), (str, ParameterType.PARAMETER_STRING))
+
+
+def descriptor(name: str, value, meta: Dict, read_only: bool = False) -> ParameterDescriptor:
+    """ParameterDescriptor for one spec() entry (a Scenario's, a vision dataclass's or a node's
+    own): description [unit], range, constraints."""
     unit = meta.get('unit') or ''
-    is_int = isinstance(value, int) and not isinstance(value, bool)
+    kind = next(t for cls, t in _TYPES if isinstance(value, cls))
+    is_int = kind == ParameterType.PARAMETER_INTEGER
+    numeric = kind in (ParameterType.PARAMETER_INTEGER, ParameterType.PARAMETER_DOUBLE)
     desc = ParameterDescriptor(
-        name=name,
-        type=ParameterType.PARAMETER_INTEGER if is_int else ParameterType.PARAMETER_DOUBLE,
+        name=name, type=kind, read_only=read_only,
         description=meta.get('description', '') + (f' [{unit}]' if unit else ''),
-        additional_constraints=f'allowed {_range_text(meta)}' if 'low' in meta else '')
+        additional_constraints=f'allowed {range_text(meta)}' if numeric and 'low' in meta
+        else '')
     low, high = meta.get('low'), meta.get('high')
-    if low is not None and high is not None:
+    if numeric and low is not None and high is not None:
         if is_int:
             desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
         else:
@@ -53,6 +60,20 @@ def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> N
         if (p is not None and p.type_ == Parameter.Type.INTEGER
                 and isinstance(defaults[name], float)):
             overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(p.value))
+
+
+def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: bool = True
+                 ) -> Dict[str, object]:
+    """Declares spec() entries (name, default, metadata) on ``node`` with their descriptors
+    (read-only by default: read at start-up only) and returns {name: value}. An integer given for
+    a double (``-p fps:=30``) is taken as a double. Raises rclpy's ParameterException (an
+    out-of-range value: InvalidParameterValueException) for an invalid start-up value."""
+    entries = list(entries)
+    defaults = {n: v for n, v, _ in entries}
+    accept_integers_for_doubles(node, defaults, defaults)
+    declared = node.declare_parameters('', [(n, v, descriptor(n, v, m, read_only=read_only))
+                                            for n, v, m in entries])
+    return {p.name: p.value for p in declared}
 
 
 class ScenarioParameters:
@@ -125,28 +146,45 @@ class ScenarioParameters:
             self.on_change(self.scenario)
 
 
-def yaml_text(node_name: str, header: str, own: Iterable[Tuple[str, object, str]] = (),
-              scenario: Optional[Scenario] = None, exclude: Iterable[str] = ()) -> str:
-    """A parameters file for ``--ros-args --params-file``: ``own`` (name, value, comment) entries
-    first, then every Scenario parameter, nested by section, each with its unit, range and
-    description in a comment. Regenerate msg_config files with it when the core gains fields."""
+def spec_comment(value, meta: Dict) -> str:
+    """The YAML comment of a spec() entry: range and unit of a number, then its description."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        unit = meta.get('unit') or ''
+        return meta['description'] + (f' [{unit}]' if unit else '')
+    return f'{range_text(meta)}: {meta["description"]}'
+
+
+def _yaml_value(value) -> str:
+    return ('true' if value else 'false') if isinstance(value, bool) else repr(value)
+
+
+def yaml_text(node_name: str, header: str, own: Iterable[Tuple[str, object, object]] = (),
+              scenario: Optional[Scenario] = None, exclude: Iterable[str] = (),
+              with_scenario: bool = True) -> str:
+    """A parameters file for ``--ros-args --params-file``: ``own`` (name, value, comment or
+    spec() metadata) entries first, then (``with_scenario``) every Scenario parameter, nested by
+    section, each with its unit, range and description in a comment. One generator for every
+    msg_config/<node>.yaml: regenerate them with it (each node's ``--write-yaml``) when a
+    dataclass gains fields."""
     import textwrap
     scenario = scenario if scenario is not None else Scenario()
     exclude = set(exclude)
     lines = [f'# {line}' if line else '#' for line in header.splitlines()]
     lines += [f'{node_name}:', '  ros__parameters:']
     for name, value, comment in own:
+        if isinstance(comment, dict):
+            comment = spec_comment(value, comment)
         lines += textwrap.wrap(comment, 95, initial_indent='    # ', subsequent_indent='    # ')
-        lines.append(f'    {name}: {value!r}')
+        lines.append(f'    {name}: {_yaml_value(value)}')
     section = None
-    for name, value, meta in scenario.describe():
+    for name, value, meta in (scenario.describe() if with_scenario else ()):
         if name in exclude:
             continue
         sec, key = name.split('.', 1)
         if sec != section:
             lines.append(f'    {sec}:')
             section = sec
-        comment = f'{_range_text(meta)}: {meta["description"]}'
+        comment = spec_comment(value, meta)
         lines += textwrap.wrap(comment, 93, initial_indent='      # ',
                                subsequent_indent='      #   ')
         lines.append(f'      {key}: {value!r}')
