@@ -161,7 +161,8 @@ def write_outputs(results: List[ConditionResult], out: Path) -> Dict[str, Path]:
             writer.writerow({k: f'{v:.6g}' if isinstance(v, float) else v
                              for k, v in asdict(r).items()})
     paths['markdown'].write_text(markdown(results, summary))
-    _plot(results, summary, paths)
+    from saw_ros.analysis.figures.campaign_plots import plot_campaign
+    plot_campaign(results, summary, paths['figure17'], paths['figure18'])
     return paths
 
 
@@ -204,53 +205,3 @@ def markdown(results: List[ConditionResult], summary: Dict[str, object]) -> str:
                   f'states: mean relative error {100 * summary["mean_reference_error"]:.1f} % '
                   '(voltage-to-frequency: msg_config/simulator.yaml motor.hz_per_volt).']
     return '\n'.join(lines) + '\n'
-
-
-def _plot(results, summary, paths) -> None:
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
-    panels = ((a1, 'voltage', 'slope_deg', summary['speed_vs_slope_fits'], '{:g} V',
-               'slope (deg)', '(A) speed against slope'),
-              (a2, 'slope_deg', 'voltage', summary['speed_vs_voltage_fits'], '{:g} deg',
-               'motor voltage (V)', '(B) speed against voltage'))
-    for ax, group, along, fits, label, xlabel, title in panels:
-        for i, key in enumerate(sorted({getattr(r, group) for r in results})):
-            rows = [r for r in results if getattr(r, group) == key]
-            x = [getattr(r, along) for r in rows]
-            ax.plot(x, [100 * r.v_tracked for r in rows], 'o', color=f'C{i}',
-                    label=label.format(key))
-            if key in fits:
-                a, b, r2 = fits[key]
-                ax.plot(x, [100 * (a * u + b) for u in x], '-', color=f'C{i}', lw=1,
-                        label=f'fit R$^2$={r2:.3f}')
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel('tracked speed (cm/s)')
-        ax.set_title(title)
-    refs = [r for r in results if math.isfinite(r.reference_speed)]
-    for r in refs:
-        a2.plot(r.voltage, 100 * r.reference_speed, 'k*', ms=10)
-    if refs:
-        a2.plot([], [], 'k*', label='paper, measured')
-    for ax in (a1, a2):
-        ax.legend(fontsize=7, ncol=2)
-    fig.suptitle('Figure 17: speeds of the validation campaign (virtual camera + tracker)')
-    fig.tight_layout()
-    fig.savefig(paths['figure17'], dpi=100)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(10, 4.2))
-    labels = [f'{r.slope_deg:g}°\n{r.voltage:g} V' for r in results]
-    x = np.arange(len(results))
-    ax.plot(x, [r.ar_sim for r in results], '^', label='simulation')
-    ax.plot(x, [r.ar_tracked for r in results], 'o', mfc='none', label='tracking')
-    ax.set_xticks(x)
-    ax.set_xticklabels(labels, fontsize=7)
-    ax.set_ylabel('advance ratio')
-    ax.set_title(f'Figure 18: AR of simulation and tracking; mean relative error '
-                 f'{100 * summary["mean_relative_error"]:.2f} %')
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(paths['figure18'], dpi=100)
-    plt.close(fig)
