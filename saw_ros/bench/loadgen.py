@@ -24,11 +24,8 @@ from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
 from saw_ros.ros.runtime import CLOCK_QOS, IMAGE_QOS, STREAM_QOS, run_node, with_depth
 from saw_ros.ros.nodes.simulator import PUBLISHER_DEPTH
 
-# Images: 2 s at 60 fps. A KEEP_LAST writer overwrites samples not yet acknowledged when it
-# publishes a burst longer than its depth, and this node bursts to catch up its schedule after
-# being descheduled (0.3-0.7 s stalls seen on 2 shared cores: 20-48 images lost at depth 30).
-# Fast DDS drops acknowledged samples of a volatile writer, so the depth costs memory only while
-# a reader is behind.
+# Images: 2 s at 60 fps, longer than the bursts this node publishes to catch up after being
+# descheduled (a KEEP_LAST writer overwrites unacknowledged samples; docs/measurements.md).
 IMAGE_DEPTH = 120
 
 

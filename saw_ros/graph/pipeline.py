@@ -46,11 +46,8 @@ def _tail(path: Path, lines: int = 15) -> str:
         return ''
 
 
-# What the graph's recorder records by default: every topic of the graph except the raw camera
-# frames, which camera.mp4 keeps. Recording 166 MB/s of raw 1280x720 frames as well costs the
-# recorder about 0.3 of a core more and halves the real-time factor the five nodes sustain on two
-# cores without losing a message (0.5 instead of about 1.0, measured with
-# `python -m saw_ros.bench.pipeline`). Pass ``record_topics=ALL_TOPICS`` to keep them.
+# What the graph's recorder records by default: every topic but the raw camera frames, which
+# camera.mp4 keeps (why: docs/measurements.md). ``record_topics=ALL_TOPICS`` keeps them too.
 RECORDED_TOPICS = ['/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
                    '/saw/joint_states', '/saw/camera/camera_info', '/saw/tracking/pose',
                    '/saw/tracking/front', '/saw/tracking/back', '/saw/tracking/twist',

@@ -4,13 +4,9 @@ main() follows ros2/demos: init, build the node, spin, and on SIGINT/SIGTERM or 
 shutdown destroy the node and exit 0 without a traceback. A node that must exit with an error
 (a diverging simulation) raises ``NodeFailure``: its message is logged and the exit code is 1.
 
-Stopping (``run_node``): rclpy's own signal handlers are not installed. Theirs shut every context
-down from another thread at once, while the main thread may be in the middle of a callback that
-publishes (``RCLError: publisher's context is invalid``, "failed to initialize wait set") and the
-node's own threads still publish; a KeyboardInterrupt raised inside a callback made the events
-executor log FATAL. Here SIGINT and SIGTERM only request the stop: the spin loop sees it between
-two 0.1 s slices and returns, then the node's ``close()`` finishes its work and stops its threads,
-the node is destroyed and only then the context shut down.
+Stopping (``run_node``): SIGINT and SIGTERM only request the stop (rclpy's own handlers are not
+installed); the spin loop returns between two 0.1 s slices, ``close()`` finishes the node's work,
+the node is destroyed, and only then the context shut down. Why: docs/measurements.md.
 """
 from __future__ import annotations
 
@@ -43,8 +39,7 @@ def with_depth(qos: QoSProfile, depth: int) -> QoSProfile:
                       durability=qos.durability)
 
 
-# A subscriber of the 1 kHz streams in a busy graph: 1 s of queue (like the recorder's) rides out
-# a few hundred ms without CPU on two shared cores (200, STREAM_QOS's depth, did not).
+# A subscriber of the 1 kHz streams in a busy graph keeps 1 s of queue (docs/measurements.md).
 INPUT_DEPTH = 1000
 # Publishers of camera images and infos keep 1 s of history at 60 fps: a reliable reader that
 # falls behind is repaired from the writer's history (cf. the simulator's PUBLISHER_DEPTH).
@@ -54,8 +49,8 @@ IMAGE_PUBLISHER_DEPTH = 60
 def image_publisher_qos() -> QoSProfile:
     """IMAGE_QOS offered transient-local with IMAGE_PUBLISHER_DEPTH of history: compatible
     with every volatile reader, and a recorder (which asks for transient-local when all
-    publishers offer it) that matches late still gets the last second of frames (the recorder's
-    image participant matched 0.1-0.5 s after the simulator had started: first frames lost)."""
+    publishers offer it) that matches late still gets the last second of frames
+    (docs/measurements.md)."""
     return QoSProfile(history=IMAGE_QOS.history, depth=IMAGE_PUBLISHER_DEPTH,
                       reliability=IMAGE_QOS.reliability,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -206,10 +201,8 @@ def flush(node, timeout: float = FLUSH_TIMEOUT) -> List[str]:
     """Wait, ``timeout`` s at most in all, until every reliable subscriber has acknowledged what
     ``node``'s publishers published; warn about and return the topics where one did not.
 
-    A process that exits at once takes the samples a reliable subscriber has not received yet
-    with it (a subscriber that fell behind on a busy machine lost the last 0.2 s of 1 kHz steps
-    and the camera's last frames that way); the bound keeps a subscriber that stalled or
-    vanished without unmatching from holding the node forever."""
+    Exiting at once would drop what a lagging reliable subscriber has not received yet; the
+    bound keeps a stalled or vanished subscriber from holding the node (docs/measurements.md)."""
     from rclpy.duration import Duration
     deadline = time.monotonic() + timeout
     late = []
