@@ -34,17 +34,25 @@ import cv2
 
 import numpy as np
 
+from saw_ros.core.params import spec
+
 
 @dataclass(frozen=True)
 class CameraModel:
-    width: int = 1280            # px
-    height: int = 720            # px
-    scale: float = 1200.0        # px per metre in the plane of motion
-    slope: float = 0.0           # rad, the surfaces' angle to the image horizontal (+ climbs)
-    center_x: float = 0.33       # m, surface-frame x seen at the principal point
-    center_y: float = 0.0225     # m, surface-frame y seen at the principal point
-    distance: float = 1.0        # m, optical centre to the plane of motion (f = scale * distance)
-    mirror: bool = False         # True: surface +x points to the image's left
+    # spec(): unit, range and description, for the camera node's parameters, its
+    # msg_config/camera.yaml and saw-ros render's options (ranges as __post_init__ checks them)
+    width: int = spec(1280, 'px', 'image width', 16, None)
+    height: int = spec(720, 'px', 'image height', 16, None)
+    scale: float = spec(1200.0, 'px/m', 'pixels per metre in the plane of motion', 0.0, None,
+                        low_open=True)
+    slope: float = spec(0.0, 'rad', "slope of the surfaces as the level camera sees them (their "
+                        "angle to the image horizontal, + climbs)", -math.pi / 2, math.pi / 2)
+    center_x: float = spec(0.33, 'm', 'surface-frame x seen at the principal point')
+    center_y: float = spec(0.0225, 'm', 'surface-frame y seen at the principal point')
+    distance: float = spec(1.0, 'm', 'optical centre to the plane of motion: focal length '
+                           'f = scale * distance', 0.0, None, low_open=True)
+    mirror: bool = spec(False, '', "true when the robot travels towards the left of the image "
+                        "(surface +x points to the image's left)")
     cx: Optional[float] = None   # px, principal point; None = image centre
     cy: Optional[float] = None   # px
     dist_coeffs: Tuple[float, ...] = ()           # OpenCV (k1, k2, p1, p2[, k3[, k4, k5, k6]])

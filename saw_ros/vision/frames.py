@@ -33,7 +33,7 @@ import numpy as np
 
 from saw_ros.core.kinematics import (PhaseTable, base_link_end, cycle_phases, hinge_x,
                                      link_geometry)
-from saw_ros.core.params import RobotParams
+from saw_ros.core.params import RobotParams, spec
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.scene import SceneOptions, distortion_maps, draw_clutter, gradient_map, jpeg
 
@@ -64,17 +64,21 @@ class RobotPose(NamedTuple):
 
 @dataclass(frozen=True)
 class RenderOptions:
-    noise: float = 0.0              # grey levels, sigma of the sensor noise (0 = none)
-    exposure: float = 0.0           # s, exposure time for motion blur (0 = none)
-    blur_samples: int = 5           # sub-frames averaged over the exposure
-    brightness: float = 1.0         # factor on the scene's intensity (saturates at 255)
-    texture: bool = True            # textured wall behind the robot (False: flat grey)
-    seed: int = 0                   # random seed of texture and noise
-    marker_radius: float = 0.006    # m
-    front_marker: float = 0.16      # m, body x of the front marker (on the body axis, y = 0)
-    back_marker: float = -0.16      # m, body x of the back marker
-    silicone_thickness: float = 0.012   # m
-    board_thickness: float = 0.018      # m
+    # spec(): unit, range and description, for the camera node's parameters, its
+    # msg_config/camera.yaml and saw-ros render's options (ranges as __post_init__ checks them)
+    noise: float = spec(0.0, 'grey levels', 'sensor noise, standard deviation; 0 = none', 0.0,
+                        None)
+    exposure: float = spec(0.0, 's', 'exposure time for motion blur; 0 = none', 0.0, None)
+    blur_samples: int = spec(5, '', 'sub-frames averaged over the exposure', 1, None)
+    brightness: float = spec(1.0, '', "brightness factor on the scene's intensity (1 = nominal; "
+                             'saturates at 255)', 0.0, None, low_open=True)
+    texture: bool = spec(True, '', 'textured wall behind the track (false: flat grey)')
+    seed: int = spec(0, '', 'random seed of texture and noise')
+    marker_radius: float = spec(0.006, 'm', 'radius of a pink marker', 0.0, None, low_open=True)
+    front_marker: float = spec(0.16, 'm', 'body x of the front marker (on the body axis, y = 0)')
+    back_marker: float = spec(-0.16, 'm', 'body x of the back marker')
+    silicone_thickness: float = spec(0.012, 'm', 'thickness of the silicone on each surface')
+    board_thickness: float = spec(0.018, 'm', 'thickness of the board behind each surface')
 
     def __post_init__(self):
         for name in ('noise', 'exposure'):

@@ -67,13 +67,14 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import StrEnum
 from typing import Deque, Dict, List, Optional, Tuple
 
 import cv2
 import numpy as np
 
+from saw_ros.core.params import spec
 from saw_ros.vision.camera import CameraModel
 
 
@@ -102,51 +103,57 @@ MAX_PAIR_CANDIDATES = 12  # acquisition looks at the heaviest candidates only
 _KERNEL = np.ones((3, 3), np.uint8)
 
 
-def _opt(default, text: str, flag: Optional[str] = None):
-    """A TrackerConfig field with its description (and command-line flag, if not --name)."""
-    meta = {'help': text}
-    if flag:
-        meta['flag'] = flag
-    return field(default=default, metadata=meta)
-
-
 @dataclass(frozen=True)
 class TrackerConfig:
-    hue_min: int = _opt(140, 'pink hue window lower end, OpenCV hue 0-179 (a window with min > '
-                             'max wraps through 0)')
-    hue_max: int = _opt(172, 'pink hue window upper end, OpenCV hue 0-179')
-    sat_min: int = _opt(70, 'least saturation of a marker pixel, 0-255')
-    val_min: int = _opt(60, 'least value (brightness) of a marker pixel, 0-255')
-    pink_min: float = _opt(60.0, 'least pinkness R + B - 2G of a marker pixel, grey levels')
-    min_area: float = _opt(20.0, 'smallest marker blob, px (full resolution)')
-    downscale: int = _opt(4, 'detection runs on the image shrunk by this factor')
-    min_contrast: float = _opt(60.0, 'least pinkness of a marker above its surroundings')
-    merge_distance: float = _opt(10.0, 'candidates closer than this are one marker, px')
-    gate: float = _opt(40.0, 'largest marker motion from its prediction between frames, px')
-    reacquire_after: int = _opt(30, 'frames with both markers lost before acquiring again')
-    roi: Optional[Tuple[int, int, int, int]] = _opt(
-        None, 'region of interest x0,y0,x1,y1 (px, x1 and y1 excluded): markers are looked for '
-              'only there')
+    """What the markers look like and how the tracker follows them. Each field carries its unit,
+    range and description (``core.params.spec``): the vision node's parameters, its
+    msg_config/vision.yaml and ``saw-ros track``'s options are made from them. The ranges are
+    those ``__post_init__`` checks (open bounds and the checks between fields stay there)."""
+    hue_min: int = spec(140, '', 'pink hue window lower end, OpenCV hue 0-179 (a window with '
+                                 'min > max wraps through 0)', 0, 179)
+    hue_max: int = spec(172, '', 'pink hue window upper end, OpenCV hue 0-179', 0, 179)
+    sat_min: int = spec(70, '', 'least saturation of a marker pixel, 0-255', 0, 255)
+    val_min: int = spec(60, '', 'least value (brightness) of a marker pixel, 0-255', 0, 255)
+    pink_min: float = spec(60.0, 'grey levels', 'least pinkness R + B - 2G of a marker pixel')
+    min_area: float = spec(20.0, 'px', 'smallest marker blob (full resolution)')
+    downscale: int = spec(4, '', 'detection runs on the image shrunk by this factor', 1, None)
+    min_contrast: float = spec(60.0, 'grey levels',
+                               'least pinkness of a marker above its surroundings')
+    merge_distance: float = spec(10.0, 'px', 'candidates closer than this are one marker', 0.0,
+                                 None, low_open=True)
+    gate: float = spec(40.0, 'px', 'largest marker motion from its prediction between frames',
+                       0.0, None, low_open=True)
+    reacquire_after: int = spec(30, '', 'frames with both markers lost before acquiring again',
+                                1, None)
+    roi: Optional[Tuple[int, int, int, int]] = spec(
+        None, 'px', 'region of interest x0,y0,x1,y1 (x1 and y1 excluded): markers are looked '
+                    'for only there')
     # (metadata 'flag': the command-line flag when it is not --<name>)
-    marker_spacing: Optional[float] = _opt(
-        None, "distance between the two markers' centres on the robot, m (the renderer's: "
-              '0.32); picks the pair among pink things, and without --px-per-m sets the scale',
-        flag='--marker-spacing-m')
-    marker_diameter: Optional[float] = _opt(
-        None, "diameter of a marker, m (the renderer's: 0.012): blobs of another size are not "
-              'markers', flag='--marker-diameter-m')
-    spacing_tolerance: float = _opt(0.1, 'acquisition: relative tolerance on the marker spacing')
-    max_pitch: float = _opt(math.radians(15.0), 'acquisition: largest angle of the marker line '
-                                                'to the track, rad')
-    colour_tolerance: float = _opt(0.2, 'largest difference of colour (B - G) / (R - G) between '
-                                        'the markers and from frame to frame')
-    com_offset_x: float = _opt(0.0, 'COM minus marker midpoint along the back->front line, m')
-    com_offset_y: float = _opt(0.0, 'COM minus marker midpoint normal to that line, m')
-    marker_line_angle: float = _opt(0.0, 'angle of the back->front line in the body frame, rad')
-    smooth_window: float = _opt(0.25, 'smoothed speed: least-squares window, s')
-    steady_window: float = _opt(4.0, 'steady-state mean speed: least-squares window, s')
-    steady_fill: float = _opt(0.9, 'fraction of the steady window the samples must span')
-    max_step_gap: float = _opt(0.25, 'longest gap for an instantaneous speed, s')
+    marker_spacing: Optional[float] = spec(
+        None, 'm', "distance between the two markers' centres on the robot (the renderer's: "
+                   '0.32); picks the pair among pink things, and without --px-per-m sets the '
+                   'scale', 0.0, None, low_open=True, flag='--marker-spacing-m')
+    marker_diameter: Optional[float] = spec(
+        None, 'm', "diameter of a marker (the renderer's: 0.012): blobs of another size are not "
+                   'markers', 0.0, None, low_open=True, flag='--marker-diameter-m')
+    spacing_tolerance: float = spec(0.1, '', 'acquisition: relative tolerance on the marker '
+                                             'spacing', 0.0, 0.5, low_open=True, high_open=True)
+    max_pitch: float = spec(math.radians(15.0), 'rad', 'acquisition: largest angle of the marker '
+                            'line to the track', 0.0, math.pi / 2, low_open=True, high_open=True)
+    colour_tolerance: float = spec(0.2, '', 'largest difference of colour (B - G) / (R - G) '
+                                            'between the markers and from frame to frame', 0.0,
+                                   None, low_open=True)
+    com_offset_x: float = spec(0.0, 'm', 'COM minus marker midpoint along the back->front line')
+    com_offset_y: float = spec(0.0, 'm', 'COM minus marker midpoint normal to that line')
+    marker_line_angle: float = spec(0.0, 'rad', 'angle of the back->front line in the body frame')
+    smooth_window: float = spec(0.25, 's', 'smoothed speed: least-squares window', 0.0, None,
+                                low_open=True)
+    steady_window: float = spec(4.0, 's', 'steady-state mean speed: least-squares window', 0.0,
+                                None, low_open=True)
+    steady_fill: float = spec(0.9, '', 'fraction of the steady window the samples must span',
+                              0.0, 1.0, low_open=True)
+    max_step_gap: float = spec(0.25, 's', 'longest gap for an instantaneous speed', 0.0, None,
+                               low_open=True)
 
     def __post_init__(self):
         for name in ('hue_min', 'hue_max', 'sat_min', 'val_min', 'downscale', 'reacquire_after'):

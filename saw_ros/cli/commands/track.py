@@ -52,7 +52,8 @@ def _numbers(kind, count=None):
 
 def config_options():
     """(field name, flag, argparse keywords) for every TrackerConfig field, from the field's
-    type, default and description: the command line and the dataclass cannot disagree."""
+    type, default, unit and description (its spec()): the command line, the vision node and the
+    dataclass cannot disagree."""
     hints = typing.get_type_hints(TrackerConfig)
     for f in dataclasses.fields(TrackerConfig):
         kind = hints[f.name]
@@ -68,7 +69,8 @@ def config_options():
         default = f.default
         shown = 'none' if default is None else f'{default:.6g}' if isinstance(default, float) \
             else default
-        kw.update(default=default, help=f"{f.metadata['help']} (default {shown})")
+        unit = f", {f.metadata['unit']}" if f.metadata['unit'] else ''
+        kw.update(default=default, help=f"{f.metadata['description']}{unit} (default {shown})")
         yield f.name, f.metadata.get('flag', '--' + f.name.replace('_', '-')), kw
 
 
