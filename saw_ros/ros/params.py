@@ -76,6 +76,11 @@ def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: b
     return {p.name: p.value for p in declared}
 
 
+# Scenario names the simulator node does not declare, taking them from its own parameters
+# instead (the comparison asks the simulator for every other Scenario name).
+SIMULATOR_EXCLUDED = ('integration.duration',)        # replaced by `duration` (0 = until stopped)
+
+
 class ScenarioParameters:
     """Declares a Scenario's parameters on ``node`` and keeps ``self.scenario`` in step with them.
 

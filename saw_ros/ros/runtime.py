@@ -1,4 +1,4 @@
-"""What every saw_ros node shares: the main() shape, signal handling and QoS profiles.
+"""What every saw_ros node shares: the main() shape, signal handling (QoS profiles: ``saw_ros.ros.qos``).
 
 main() follows ros2/demos: init, build the node, spin, and on SIGINT/SIGTERM or an external
 shutdown destroy the node and exit 0 without a traceback. A node that must exit with an error
@@ -14,50 +14,10 @@ import signal
 import time
 from typing import Callable, List, Optional
 
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
-
-# Every 1 kHz stream must arrive complete (tests and bags count stamps): reliable, and a queue
-# deep enough to ride out a subscriber's scheduling hiccup of a few tens of milliseconds.
-STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=200,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.VOLATILE)
-# /clock as rosgraph expects it from a simulator: reliable, shallow.
-CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE)
-# Camera images: reliable so that recordings and accuracy figures see every frame; 60 Hz of
-# 1280x720 images is light next to the 1 kHz streams.
-IMAGE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=30,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE)
-
-
-def with_depth(qos: QoSProfile, depth: int) -> QoSProfile:
-    """``qos`` with another history depth: the same contract (depth does not take part in QoS
-    matching), a longer queue on this side."""
-    return QoSProfile(history=qos.history, depth=depth, reliability=qos.reliability,
-                      durability=qos.durability)
-
-
-# A subscriber of the 1 kHz streams in a busy graph keeps 1 s of queue (docs/measurements.md).
-INPUT_DEPTH = 1000
-# Publishers of camera images and infos keep 1 s of history at 60 fps: a reliable reader that
-# falls behind is repaired from the writer's history (cf. the simulator's PUBLISHER_DEPTH).
-IMAGE_PUBLISHER_DEPTH = 60
-
-
-def image_publisher_qos() -> QoSProfile:
-    """IMAGE_QOS offered transient-local with IMAGE_PUBLISHER_DEPTH of history: compatible
-    with every volatile reader, and a recorder (which asks for transient-local when all
-    publishers offer it) that matches late still gets the last second of frames
-    (docs/measurements.md)."""
-    return QoSProfile(history=IMAGE_QOS.history, depth=IMAGE_PUBLISHER_DEPTH,
-                      reliability=IMAGE_QOS.reliability,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# Low-rate reports (comparison, status): late joiners get the last one.
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# The QoS profiles live in saw_ros.ros.qos; importable from here for older importers.
+from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, IMAGE_QOS,  # noqa: F401
+                             INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, image_publisher_qos,
+                             with_depth)
 
 
 # s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.

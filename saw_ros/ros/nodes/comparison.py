@@ -37,10 +37,9 @@ from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
 from saw_ros.core.params import Scenario
-from saw_ros.ros.params import accept_integers_for_doubles
-from saw_ros.ros.runtime import (INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, NodeFailure, run_node, spin_events,
-                     with_depth)
-from saw_ros.ros.nodes.simulator import EXCLUDED as SIMULATOR_EXCLUDED
+from saw_ros.ros.params import SIMULATOR_EXCLUDED, accept_integers_for_doubles
+from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
+from saw_ros.ros.runtime import NodeFailure, run_node, spin_events
 
 TRACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 

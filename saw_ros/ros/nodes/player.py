@@ -32,8 +32,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from saw_ros.bag.reader import BagReader, BagReadError
 from saw_ros.ros.conversions import clock_cdr
+from saw_ros.ros.qos import CLOCK_QOS, message_class
 from saw_ros.ros.runtime import NodeFailure, run_node
-from saw_ros.ros.nodes.recorder import message_class
 
 SLEEP_MIN = 0.0005   # s: no sleep for a message due sooner than this (timing error < 0.5 ms)
 MAX_CLOCK_RATE = 1e6  # Hz: one /clock a microsecond at most
@@ -112,7 +112,6 @@ class Player(Node):
         self.clock_pub = None
         if self.clock_from_log:
             from rosgraph_msgs.msg import Clock
-            from saw_ros.ros.runtime import CLOCK_QOS
             self.clock_pub = self.create_publisher(Clock, '/clock', CLOCK_QOS)
         self.played = 0
         self._executor = None       # serves the parameter services while playing

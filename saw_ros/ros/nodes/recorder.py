@@ -32,7 +32,6 @@ messages of several publishers on one topic are told apart by their sequence num
 from __future__ import annotations
 
 import datetime
-import importlib
 import json
 import os
 import queue
@@ -49,6 +48,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from saw_ros.bag.schema import UnknownMessageType, check_definitions
 from saw_ros.bag.writer import BagWriteError, BagWriter, INFINITE, qos_profile_dict
+from saw_ros.ros.qos import message_class
 from saw_ros.ros.runtime import NodeFailure, run_node
 
 _STOP = object()
@@ -95,11 +95,6 @@ def default_excluded() -> List[str]:
 def default_output(bags_dir: str, label: str) -> str:
     stamp = datetime.datetime.now().strftime('%Y-%m-%d_%H-%M-%S')
     return os.path.join(bags_dir, f'{stamp}_{label}')
-
-
-def message_class(type_name: str):
-    pkg, namespace, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{pkg}.{namespace}'), name)
 
 
 class LossCounter:

@@ -41,8 +41,9 @@ from saw_ros.ros import conversions as conv
 from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
-from saw_ros.ros.params import ScenarioParameters, accept_integers_for_doubles
-from saw_ros.ros.runtime import CLOCK_QOS, STREAM_QOS, NodeFailure, run_node, spin_node, with_depth
+from saw_ros.ros.params import SIMULATOR_EXCLUDED, ScenarioParameters, accept_integers_for_doubles
+from saw_ros.ros.qos import CLOCK_QOS, PUBLISHER_DEPTH, STREAM_QOS, with_depth
+from saw_ros.ros.runtime import NodeFailure, run_node, spin_node
 
 # What the node publishes every step, in this order (tests and benchmarks subscribe from here).
 TOPICS = {'/clock': Clock, '/saw/pose': PoseStamped, '/saw/twist': TwistStamped,
@@ -51,18 +52,12 @@ TOPICS = {'/clock': Clock, '/saw/pose': PoseStamped, '/saw/twist': TwistStamped,
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
 MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
-# Publishers keep the contract's policies (STREAM_QOS, CLOCK_QOS: reliable, volatile) with a
-# deeper history, 1000 = 1 s at 1 kHz: a reliable reader that falls behind can only be repaired
-# from the writer's history, and Clock, a plain type, is handed to same-host readers straight
-# from it (Fast DDS data sharing), so a reader further behind than the writer's depth loses
-# /clock ticks however deep its own queue is. (Depth does not affect QoS compatibility.)
-PUBLISHER_DEPTH = 1000
 
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
 WARN_EVERY = 5.0             # s of wall time between "falling behind" warnings
 
 # Names the simulator takes from its own parameters instead of the Scenario's.
-EXCLUDED = ('integration.duration',)        # replaced by `duration` (0 = until stopped)
+EXCLUDED = SIMULATOR_EXCLUDED                 # integration.duration: replaced by `duration`
 FROZEN = {
     'robot': 'the robot geometry is fixed for a run (tip tables are built from it); '
              'restart the node with the new value',
