@@ -29,9 +29,17 @@ def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
     ``--<name>``). Used by the Scenario's groups here and by the vision layer's dataclasses
     (``TrackerConfig``, ``CameraModel``, ``RenderOptions``), so that node parameters, the
     ``msg_config/`` files and the command line all read one definition."""
-    return field(default=default, metadata={
-        'unit': unit, 'description': description, 'low': low, 'high': high,
-        'low_open': low_open, 'high_open': high_open, **extra})
+    return field(default=default, metadata=spec_meta(unit, description, low, high, low_open,
+                                                     high_open, **extra))
+
+
+def spec_meta(unit: str, description: str, low: Optional[float] = None,
+              high: Optional[float] = None, low_open: bool = False, high_open: bool = False,
+              **extra: Any) -> Dict[str, Any]:
+    """The metadata of a spec() field, for a parameter that is no dataclass field (a node's
+    own: its topics, its frame rate...)."""
+    return {'unit': unit, 'description': description, 'low': low, 'high': high,
+            'low_open': low_open, 'high_open': high_open, **extra}
 
 
 def spec_entries(cls, names: Optional[Iterable[str]] = None
