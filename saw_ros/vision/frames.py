@@ -326,13 +326,21 @@ class Renderer:
 
 
 class StampedSeries:
-    """Time-stamped samples arriving in order (stamps in ns, increasing), linearly
-    interpolated; keeps the last ``keep_ns`` (at least 4096 samples)."""
+    """Time-stamped samples arriving in order (stamps increasing: ns in the camera node),
+    linearly interpolated; keeps the last ``keep_ns`` (at least 4096 samples; None: all)."""
 
-    def __init__(self, keep_ns: int):
-        self.keep_ns = int(keep_ns)
+    def __init__(self, keep_ns: Optional[int] = None):
+        self.keep_ns = None if keep_ns is None else int(keep_ns)
         self.t: List[int] = []
         self.v: List[tuple] = []
+
+    @classmethod
+    def of(cls, t: Sequence[float], *columns: Sequence[float]) -> 'StampedSeries':
+        """A whole record at once: stamps ``t`` and one sequence per value column."""
+        series = cls()
+        series.t = [float(s) for s in t]
+        series.v = list(zip(*(np.asarray(c, float).tolist() for c in columns)))
+        return series
 
     def add(self, t: int, values: tuple) -> bool:
         """Append; False (and cleared) when time went backwards (a replay restarted)."""
@@ -346,7 +354,8 @@ class StampedSeries:
             return False
         self.t.append(t)
         self.v.append(values)
-        if len(self.t) > 4096 and self.t[-1] - self.t[0] > self.keep_ns:
+        if (self.keep_ns is not None and len(self.t) > 4096
+                and self.t[-1] - self.t[0] > self.keep_ns):
             cut = bisect.bisect_left(self.t, self.t[-1] - self.keep_ns)
             del self.t[:cut]
             del self.v[:cut]
@@ -381,12 +390,8 @@ def pose_between(poses: StampedSeries, phases: StampedSeries, t_ns: float) -> Ro
 
 def pose_interpolator(t: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarray,
                       phase: np.ndarray) -> Callable[[float], RobotPose]:
-    """pose_at(time) by linear interpolation of sampled states (phase unwrapped first)."""
-    t = np.asarray(t, float)
-    unwrapped = np.unwrap(np.asarray(phase, float))
-
-    def pose_at(time: float) -> RobotPose:
-        return RobotPose(float(np.interp(time, t, x)), float(np.interp(time, t, y)),
-                         float(np.interp(time, t, theta)),
-                         float(np.interp(time, t, unwrapped) % (2.0 * np.pi)))
-    return pose_at
+    """pose_at(time) of a recorded run: the camera node's interpolation (``pose_between``)
+    over the whole record."""
+    poses = StampedSeries.of(t, x, y, theta)
+    phases = StampedSeries.of(t, phase)
+    return lambda time: pose_between(poses, phases, time)
