@@ -400,6 +400,18 @@ class Tracker:
         """The marker spacing in ideal pixels as tracked so far (None before acquisition)."""
         return self._spacing
 
+    def move_camera(self, camera: CameraModel) -> None:
+        """The camera moved parallel to the plane of motion (same size, scale and lens: a camera
+        on a rail following the robot): tracking goes on, what is known in ideal pixels moves
+        with the picture; positions and speeds stay continuous in the surface frame."""
+        delta = complex(camera.to_pixels(0j)) - complex(self.camera.to_pixels(0j))
+        for track in self._tracks.values():
+            if track.p is not None:
+                track.p += delta
+        self._chains = [(q + delta, deque((h + delta for h in hist), maxlen=hist.maxlen))
+                        for q, hist in self._chains]
+        self.camera = camera
+
     def reset(self) -> None:
         self.__init__(self.camera, self.config, self.encoding)
 

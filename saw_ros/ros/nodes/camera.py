@@ -51,6 +51,11 @@ PARAMETERS = (
                    "simulator's conditions.slope"),
     ('center_x', 0.33, 'surface-frame x seen at the image centre [m]'),
     ('center_y', 0.0225, 'surface-frame y seen at the image centre [m]'),
+    ('follow', True, 'camera on a rail: when a marker nears the edge of the picture it '
+                     "re-centres on the robot; CameraInfo's principal point carries the offset"),
+    ('follow_step', 0.0, 'fixed re-centring step along the track [m]; 0 = onto the robot'),
+    ('follow_margin', 0.03, 're-centre when a marker is within this fraction of the picture '
+                           'size of an edge'),
     ('noise', 0.0, 'sensor noise, standard deviation [grey levels]'),
     ('exposure', 0.0, 'exposure time for motion blur [s]; 0 = none'),
     ('blur_samples', 5, 'sub-frames averaged over the exposure'),
@@ -92,6 +97,8 @@ class CameraNode(Node):
                                     seed=int(p['seed']))
             if not p['fps'] > 0:
                 raise ValueError(f"fps = {p['fps']} must be > 0")
+            if not (0 < p['follow_margin'] < 0.5 and p['follow_step'] >= 0):
+                raise ValueError('follow_margin must be in (0, 0.5) and follow_step >= 0')
             scenario = self.params.scenario
             self.renderer = Renderer(scenario.robot, scenario.conditions.gap, camera, options)
             self.writer = VideoWriter(p['video_path'], p['fps'], (camera.width, camera.height)) \
@@ -103,6 +110,10 @@ class CameraNode(Node):
         self.frame_id = p['frame_id']
         self.half_exposure_ns = options.exposure / 2.0 * NS_PER_S
         self.info = self._camera_info()
+        self.follow, self.follow_step = bool(p['follow']), float(p['follow_step'])
+        self.follow_margin = float(p['follow_margin'])
+        self._camera0 = camera
+        self.offset = 0.0          # m the camera moved along the track (follow)
         self._poses = StampedSeries(int(KEEP * NS_PER_S))       # (x, y, theta)
         self._phases = StampedSeries(int(KEEP * NS_PER_S))      # (helix phase,)
         self._next = None          # index of the next frame
@@ -141,8 +152,8 @@ class CameraNode(Node):
             f'{math.degrees(camera.slope):g} deg'
             + (f', writing {p["video_path"]}' if self.writer else ''))
 
-    def _camera_info(self) -> CameraInfo:
-        cam = self.camera
+    def _camera_info(self, cam: CameraModel = None) -> CameraInfo:
+        cam = cam or self.camera
         info = CameraInfo()
         info.header.frame_id = self.frame_id
         info.width, info.height = cam.width, cam.height
@@ -201,6 +212,8 @@ class CameraNode(Node):
         ready = min(self._poses.last, self._phases.last)
         while self.frame_ns(self._next) + self.half_exposure_ns <= ready:
             t_ns = self.frame_ns(self._next)
+            if self.follow:
+                self._follow(t_ns)
             t0 = time.perf_counter()
             frame = self.renderer.render(self.pose_at(t_ns), (),
                                          lambda t: self.pose_at(t * NS_PER_S), t_ns / NS_PER_S)
@@ -216,7 +229,7 @@ class CameraNode(Node):
             self._thread = threading.Thread(target=self._output_loop, name='camera-output',
                                             daemon=True)
             self._thread.start()
-        self._frames_out.put((frame, t_ns))
+        self._frames_out.put((frame, t_ns, self.info))
 
     def _output_loop(self) -> None:
         while True:
@@ -231,14 +244,45 @@ class CameraNode(Node):
                 if self._output_error is None and self.context.ok():
                     self._output_error = exc
 
-    def _publish(self, frame, t_ns: int) -> None:
+    def _follow(self, t_ns: int) -> None:
+        """A camera on a rail along the track: when a marker comes within ``follow_margin``
+        of the picture's edge, move by ``follow_step`` (or onto the robot's
+        COM, to the mm) along the surfaces. The images from then on are the moved camera's;
+        their CameraInfo is the fixed camera's with the principal point shifted by the move
+        (cx - scale d cos(slope), cy + scale d sin(slope)): with the same ``center_x`` a reader
+        keeps metric positions continuous."""
+        cam = self.camera
+        pose = self.pose_at(t_ns)
+        m = self.follow_margin * min(cam.width, cam.height)
+        if all(m <= p.real <= cam.width - 1 - m and m <= p.imag <= cam.height - 1 - m
+               for p in map(complex, self.renderer.marker_pixels(pose))):
+            return
+        step = round(pose.x - cam.center_x, 3)
+        if self.follow_step:
+            step = math.copysign(self.follow_step, step)
+        if step == 0:
+            return
+        self.offset += step
+        self.camera = cam.replace(center_x=cam.center_x + step)
+        r = self.renderer
+        self.renderer = Renderer(r.robot, r.gap, self.camera, r.options, r.scene)
+        c0 = self._camera0
+        cx, cy = c0.principal_point
+        d = self.offset * c0.scale
+        self.info = self._camera_info(c0.replace(cx=cx - d * math.cos(c0.slope),
+                                                 cy=cy + d * math.sin(c0.slope)))
+        self.get_logger().info(f'camera moved {step:+.3f} m along the track at '
+                               f't = {t_ns / NS_PER_S:.3f} s (offset {self.offset:.3f} m)')
+
+    def _publish(self, frame, t_ns: int, info: CameraInfo = None) -> None:
         """Publish image and camera info, then add the frame to the video (even when publishing
         failed: after Ctrl-C the context is gone but the video still gets every frame)."""
         t0 = time.perf_counter()
         try:
-            conv.time_msg(t_ns, self.info.header.stamp)
+            info = info or self.info
+            conv.time_msg(t_ns, info.header.stamp)
+            self._pub_info.publish(info)      # first: a reader has the new K for the image
             self._pub_image.publish(self._image_cdr(np.ascontiguousarray(frame), t_ns))
-            self._pub_info.publish(self.info)
             self.frames += 1
         finally:
             t1 = time.perf_counter()

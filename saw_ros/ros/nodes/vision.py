@@ -138,8 +138,15 @@ class VisionNode(Node):
         if not msg.k[0] > 0:
             self.get_logger().warning('camera info without a focal length ignored')
             return
+        moved = not first and list(msg.k[:2]) + list(msg.k[3:5]) == \
+            list(self.info.k[:2]) + list(self.info.k[3:5]) and self.tracker is not None
         self.info = msg
-        if not first:
+        if moved and not self.p['px_per_m'] > 0:
+            # Only the principal point: the camera moved along the track (camera node's
+            # follow): positions stay continuous.
+            cam = self.tracker.camera
+            self.tracker.move_camera(self._camera(cam.width, cam.height))
+        elif not first:
             self.get_logger().info('camera intrinsics changed: tracker restarted')
             self.tracker = None
         while self._pending:
