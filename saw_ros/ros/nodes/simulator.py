@@ -30,7 +30,7 @@ import math
 import time
 
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -38,6 +38,8 @@ from sensor_msgs.msg import JointState, PointCloud2
 from std_srvs.srv import Trigger
 
 from saw_ros.ros import conversions as conv
+from saw_ros.core.params import spec_meta
+from saw_ros.ros.params import declare_spec
 from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
@@ -75,18 +77,7 @@ class SimulatorNode(Node):
             self.params = ScenarioParameters(self, exclude=EXCLUDED, frozen=FROZEN,
                                              on_change=self._on_scenario)
             self.sim = Simulator(self.params.scenario)
-            accept_integers_for_doubles(self, ('real_time_factor', 'duration'),
-                                        {'real_time_factor': 1.0, 'duration': 0.0})
-            self.declare_parameter('real_time_factor', 1.0, ParameterDescriptor(
-                description='simulated seconds per wall-clock second; 0 = as fast as possible',
-                additional_constraints='>= 0'))
-            self.declare_parameter('duration', 0.0, ParameterDescriptor(
-                description='simulated time after which the node exits by itself (code 0), s; '
-                            '0 = run until stopped', additional_constraints='>= 0'))
-            self.declare_parameter('wait_for_subscribers', 0, ParameterDescriptor(
-                description='before the first step, wait until every topic has at least this '
-                            'many subscribers (tests, benchmarks, recordings that must see every '
-                            'step); 0 = start at once', additional_constraints='>= 0'))
+            declare_spec(self, OWN_PARAMETERS, read_only=False)
             self._rtf = self._check_rtf(self.get_parameter('real_time_factor').value)
             self._duration = self._check_duration(self.get_parameter('duration').value)
             self.dt_ns = conv.dt_nanoseconds(self.params.scenario.integration.dt)
@@ -290,12 +281,17 @@ def spin(node: SimulatorNode) -> None:
               executor=SingleThreadedExecutor(context=node.context))
 
 
+# The node's own parameters beside the Scenario's (name, default, spec metadata): declared and
+# written to msg_config/simulator.yaml from here.
 OWN_PARAMETERS = (
-    ('real_time_factor', 1.0, 'simulated seconds per wall-clock second; 0 = as fast as possible'),
-    ('duration', 0.0, 'seconds of simulated time, then the node exits with code 0; 0 = run until '
-                      'stopped'),
-    ('wait_for_subscribers', 0, 'before the first step, wait until every topic has at least '
-                                'this many subscribers; 0 = start at once'),
+    ('real_time_factor', 1.0, spec_meta('', 'simulated seconds per wall-clock second; 0 = as '
+                                            'fast as possible', 0.0, None)),
+    ('duration', 0.0, spec_meta('s', 'simulated time, then the node exits with code 0; 0 = run '
+                                     'until stopped', 0.0, None)),
+    ('wait_for_subscribers', 0, spec_meta('', 'before the first step, wait until every topic has '
+                                              'at least this many subscribers (tests, benchmarks, '
+                                              'recordings that must see every step); 0 = start '
+                                              'at once', 0, None)),
 )
 YAML_HEADER = """\
 Parameters of the saw_ros simulator node:
