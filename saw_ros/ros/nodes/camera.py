@@ -17,7 +17,6 @@ import sys
 import threading
 import time
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -27,8 +26,8 @@ from geometry_msgs.msg import PoseStamped
 from saw_ros.ros import cdr
 from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros import conversions as conv
-from saw_ros.core.params import ParameterError, Scenario
-from saw_ros.ros.params import ScenarioParameters, accept_integers_for_doubles
+from saw_ros.core.params import ParameterError, Scenario, spec_entries, spec_meta
+from saw_ros.ros.params import ScenarioParameters, declare_spec, yaml_text
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import (Renderer, RenderOptions, RobotPose, StampedSeries,
                                    pose_between)
@@ -39,34 +38,56 @@ from saw_ros.ros.runtime import (INPUT_DEPTH, STREAM_QOS, NodeFailure, image_pub
 KEEP = 2.0          # s of simulated time kept in the pose buffers
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)
 
-# name, default, description (unit in brackets)
+def _described(entry, more: str):
+    """A spec entry with ``more`` added to its description."""
+    name, default, meta = entry
+    return name, default, dict(meta, description=meta['description'] + more)
+
+
+# (name, default, spec metadata): the camera model's and the render options' from their
+# dataclasses, the node's own beside them; declared from here and written to
+# msg_config/camera.yaml (--write-yaml).
+_CAMERA = {n: (n, d, m) for n, d, m in spec_entries(CameraModel)}
+_RENDER = {n: (n, d, m) for n, d, m in spec_entries(RenderOptions)}
 PARAMETERS = (
-    ('width', 1280, 'image width [px]'),
-    ('height', 720, 'image height [px]'),
-    ('fps', 60.0, 'frames per second of simulated time [Hz]'),
-    ('scale', 1200.0, 'pixels per metre in the plane of motion [px/m]; used when fov is 0'),
-    ('fov', 0.0, 'horizontal field of view [rad]; > 0 overrides scale'),
-    ('distance', 1.0, 'camera to the plane of motion [m]: focal length f = scale * distance'),
-    ('slope', 0.0, 'slope of the surfaces as the level camera sees them [rad]; set it to the '
-                   "simulator's conditions.slope"),
-    ('center_x', 0.33, 'surface-frame x seen at the image centre [m]'),
-    ('center_y', 0.0225, 'surface-frame y seen at the image centre [m]'),
-    ('follow', True, 'camera on a rail: when a marker nears the edge of the picture it '
-                     "re-centres on the robot; CameraInfo's principal point carries the offset"),
-    ('follow_step', 0.0, 'fixed re-centring step along the track [m]; 0 = onto the robot'),
-    ('follow_margin', 0.03, 're-centre when a marker is within this fraction of the picture '
-                           'size of an edge'),
-    ('noise', 0.0, 'sensor noise, standard deviation [grey levels]'),
-    ('exposure', 0.0, 'exposure time for motion blur [s]; 0 = none'),
-    ('blur_samples', 5, 'sub-frames averaged over the exposure'),
-    ('brightness', 1.0, 'brightness factor (1 = nominal)'),
-    ('texture', True, 'textured wall behind the track'),
-    ('seed', 0, 'random seed of texture and noise'),
-    ('video_path', '', '.mp4 file to write the frames to; empty = none'),
-    ('frame_id', 'saw_camera', 'frame_id of the images and camera info'),
-    ('pose_topic', '/saw/pose', 'robot pose input (PoseStamped)'),
-    ('joint_states_topic', '/saw/joint_states', "joint states input (JointState with 'helix')"),
+    _CAMERA['width'],
+    _CAMERA['height'],
+    ('fps', 60.0, spec_meta('Hz', 'frames per second of simulated time', 0.0, None,
+                            low_open=True)),
+    _described(_CAMERA['scale'], '; used when fov is 0'),
+    ('fov', 0.0, spec_meta('rad', 'horizontal field of view; > 0 overrides scale', 0.0, None)),
+    _CAMERA['distance'],
+    _described(_CAMERA['slope'], "; set it to the simulator's conditions.slope"),
+    _CAMERA['center_x'],
+    _CAMERA['center_y'],
+    ('follow', True, spec_meta('', 'camera on a rail: when a marker nears the edge of the '
+                                   "picture it re-centres on the robot; CameraInfo's principal "
+                                   'point carries the offset')),
+    ('follow_step', 0.0, spec_meta('m', 'fixed re-centring step along the track; 0 = onto the '
+                                        'robot', 0.0, None)),
+    ('follow_margin', 0.03, spec_meta('', 're-centre when a marker is within this fraction of '
+                                          'the picture size of an edge', 0.0, 0.5, low_open=True,
+                                      high_open=True)),
+    *(_RENDER[n] for n in ('noise', 'exposure', 'blur_samples', 'brightness', 'texture', 'seed')),
+    ('video_path', '', spec_meta('', '.mp4 file to write the frames to; empty = none')),
+    ('frame_id', 'saw_camera', spec_meta('', 'frame_id of the images and camera info')),
+    ('pose_topic', '/saw/pose', spec_meta('', 'robot pose input (PoseStamped)')),
+    ('joint_states_topic', '/saw/joint_states',
+     spec_meta('', "joint states input (JointState with 'helix')")),
 )
+YAML_HEADER = """\
+Parameters of the saw_ros camera node (virtual 60 fps side-view camera):
+  python -m saw_ros.ros.nodes.camera --ros-args --params-file msg_config/camera.yaml
+SI units (m, s, rad); each comment gives the allowed range and unit. Read at start-up only.
+Doubles need a decimal point. The robot geometry (robot.*) and conditions.gap are also
+parameters, with the simulator's names and defaults: give the camera the same values as the
+simulator. Images: /saw/camera/image_raw (bgr8), /saw/camera/camera_info; see docs/vision.md.
+Generated by: python -m saw_ros.ros.nodes.camera --write-yaml msg_config/camera.yaml"""
+
+
+def yaml_file() -> str:
+    """msg_config/camera.yaml, from PARAMETERS."""
+    return yaml_text('camera', YAML_HEADER, PARAMETERS, with_scenario=False)
 
 
 class CameraNode(Node):
@@ -79,12 +100,7 @@ class CameraNode(Node):
             self.params = ScenarioParameters(self, exclude=exclude,
                                              frozen={'robot': 'restart the camera',
                                                      'conditions.gap': 'restart the camera'})
-            floats = {n: d for n, d, _ in PARAMETERS if isinstance(d, float)}
-            accept_integers_for_doubles(self, floats, floats)
-            for name, default, text in PARAMETERS:
-                self.declare_parameter(name, default, ParameterDescriptor(
-                    description=text, read_only=True))
-            p = {name: self.get_parameter(name).value for name, _, _ in PARAMETERS}
+            p = declare_spec(self, PARAMETERS)
             camera = CameraModel(width=int(p['width']), height=int(p['height']),
                                  scale=float(p['scale']), slope=float(p['slope']),
                                  center_x=float(p['center_x']), center_y=float(p['center_y']),
@@ -311,4 +327,8 @@ def main(args=None) -> int:
 
 
 if __name__ == '__main__':
+    if len(sys.argv) == 3 and sys.argv[1] == '--write-yaml':
+        with open(sys.argv[2], 'w') as f:
+            f.write(yaml_file())
+        raise SystemExit(0)
     sys.exit(main())
