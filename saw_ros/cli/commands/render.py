@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 from saw_ros.core import Scenario
+from saw_ros.core.params import ConditionParams, spec_entries
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import RenderOptions, Renderer
 from saw_ros.vision.synthetic import simulate_run
@@ -17,19 +18,29 @@ from saw_ros.cli.errors import UserError
 HELP = 'simulate a run and render it to an .mp4 (the virtual camera, offline)'
 
 
+def spec_option(p, cls, name: str, flag: str = None) -> None:
+    """A --flag for dataclass field ``cls.name`` with its default, unit and description from the
+    field's spec() (the camera node's parameter of the same name reads the same one)."""
+    (_, default, meta), = spec_entries(cls, (name,))
+    unit = f", {meta['unit']}" if meta['unit'] else ''
+    flag = flag or '--' + name.replace('_', '-')
+    p.add_argument(flag, dest=name, type=type(default), default=default,
+                   metavar=flag.lstrip('-').replace('-', '_').upper(),
+                   help=f"{meta['description']}{unit} (default {default:g})")
+
+
 def add_arguments(p):
     p.add_argument('output', help='.mp4 file to write')
     p.add_argument('--duration', type=float, default=6.0, help='simulated time, s')
     p.add_argument('--slope-deg', type=float, default=0.0, help='slope of the surfaces, deg')
-    p.add_argument('--gap', type=float, default=0.045, help='gap between the surfaces, m')
-    p.add_argument('--frequency', type=float, default=1.0, help='helix frequency, Hz')
+    spec_option(p, ConditionParams, 'gap')
+    spec_option(p, ConditionParams, 'frequency')
     p.add_argument('--fps', type=float, default=60.0, help='frames per second')
-    p.add_argument('--px-per-m', type=float, default=1200.0, help='scale, px per metre')
-    p.add_argument('--width', type=int, default=1280)
-    p.add_argument('--height', type=int, default=720)
-    p.add_argument('--noise', type=float, default=0.0, help='sensor noise sigma, grey levels')
-    p.add_argument('--exposure', type=float, default=0.0, help='exposure for motion blur, s')
-    p.add_argument('--brightness', type=float, default=1.0, help='brightness factor')
+    spec_option(p, CameraModel, 'scale', '--px-per-m')
+    spec_option(p, CameraModel, 'width')
+    spec_option(p, CameraModel, 'height')
+    for name in ('noise', 'exposure', 'brightness'):
+        spec_option(p, RenderOptions, name)
 
 
 def run(args):
@@ -37,7 +48,7 @@ def run(args):
                                        'conditions.gap': args.gap,
                                        'conditions.frequency': args.frequency})
     try:
-        camera = CameraModel(width=args.width, height=args.height, scale=args.px_per_m,
+        camera = CameraModel(width=args.width, height=args.height, scale=args.scale,
                              slope=math.radians(args.slope_deg), center_y=args.gap / 2)
         options = RenderOptions(noise=args.noise, exposure=args.exposure,
                                 brightness=args.brightness)

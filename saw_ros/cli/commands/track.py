@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.offline import SCALE_FRAMES, measure_scale, track_video  # noqa: F401
 from saw_ros.vision.tracker import TrackerConfig, TrackStatus, scale_from_spacing
 from saw_ros.vision.video import VideoError
@@ -82,10 +83,10 @@ def add_arguments(p):
                         'without it --marker-spacing-m sets the scale')
     g.add_argument('--slope-deg', type=float, default=0.0,
                    help='slope of the surfaces as the level camera sees them, degrees')
-    g.add_argument('--center-x', type=float, default=0.33,
-                   help='surface-frame x seen at the image centre, m (an origin; speeds do not '
-                        'depend on it; the camera node default is 0.33)')
-    g.add_argument('--center-y', type=float, default=0.0225,
+    g.add_argument('--center-x', type=float, default=CameraModel.center_x,
+                   help=f'surface-frame x seen at the image centre, m (an origin; speeds do not '
+                        f'depend on it; the camera node default is {CameraModel.center_x:g})')
+    g.add_argument('--center-y', type=float, default=CameraModel.center_y,
                    help='surface-frame y seen at the image centre, m')
     g.add_argument('--mirror', action='store_true',
                    help='the robot travels towards the left of the image')
