@@ -42,6 +42,8 @@ import time
 from pathlib import Path
 from typing import Dict, List, Optional
 
+from saw_ros.interface import topics
+
 KEYS = ('pipeline_max_realtime_factor', 'pipeline_lost_messages', 'pipeline_cpu_share')
 DURATION = 6.0          # s of simulated time per rung (steady state is reached near 2-3 s)
 QUICK_DURATION = 5.0
@@ -122,8 +124,7 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     """The loss figures of one run (see the module docstring)."""
     from saw_ros.bag import BagReader
     from saw_ros.ros.cdr import stamp_ns
-    from saw_ros.ros.nodes.simulator import TOPICS
-    streams = tuple(TOPICS)             # /clock and the five /saw streams
+    streams = tuple(t.name for t in topics.published_by('simulator'))  # /clock + 5 streams
     n = int(round(duration / dt))
     frames = int(round(duration * FPS))
     step_ns = int(round(dt * 1e9))
@@ -136,12 +137,11 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     ok_frames = None
     vision_frames = 0
     reader = BagReader(str(run.bag_dir))
-    tracking = ('/saw/tracking/status', '/saw/tracking/pose')
-    for m in reader.messages(streams + ('/saw/camera/image_raw', '/saw/camera/camera_info')
-                             + tracking):
+    tracking = (topics.TRACKING_STATUS, topics.TRACKING_POSE)
+    for m in reader.messages(streams + (topics.IMAGE, topics.CAMERA_INFO) + tracking):
         stamps.setdefault(m.topic, []).append(stamp_ns(m.data))
         log_times.setdefault(m.topic, []).append(m.log_time)
-    for _m, msg in reader.decoded_messages(['/saw/tracking/status']):
+    for _m, msg in reader.decoded_messages([topics.TRACKING_STATUS]):
         values = {kv.key: kv.value for kv in msg.status[0].values}
         ok_frames = int(values.get('ok_frames', 0))
         vision_frames = int(values.get('frames', 0))
@@ -149,18 +149,18 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
         lost[topic] = _missing(stamps.get(topic, []),
                                [k * step_ns for k in range(1, n + 1)])
     recorded = set(reader.topics())
-    for topic in ('/saw/camera/image_raw', '/saw/camera/camera_info', '/saw/tracking/status'):
-        if topic == '/saw/camera/image_raw' and topic not in recorded:
+    for topic in (topics.IMAGE, topics.CAMERA_INFO, topics.TRACKING_STATUS):
+        if topic == topics.IMAGE and topic not in recorded:
             problems_note = 'images not recorded (the camera info and the tracker\'s status ' \
                             'count the frames)'
             continue
         lost[topic] = _missing(stamps.get(topic, []), frame_stamps)
-    pose = stamps.get('/saw/tracking/pose', [])
+    pose = stamps.get(topics.TRACKING_POSE, [])
     if ok_frames is None:
         problems.append('no tracking status in the bag')
         ok_frames = 0
     lost['vision frames'] = frames - vision_frames      # images the tracker never got
-    lost['/saw/tracking/pose'] = abs(ok_frames - len(pose)) + len(set(pose) - set(frame_stamps))
+    lost[topics.TRACKING_POSE] = abs(ok_frames - len(pose)) + len(set(pose) - set(frame_stamps))
     c = run.comparison
     lost['comparison truth'] = n - int(c.get('truth_samples', 0) or 0)
     lost['comparison tracked'] = abs(ok_frames - int(c.get('tracked_samples', 0) or 0))
@@ -181,14 +181,14 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     failed = {k: v for k, v in run.exit_codes.items() if v != 0}
     if failed:
         problems.append(f'exit codes {failed}')
-    clock = log_times.get('/clock', [])
+    clock = log_times.get(topics.CLOCK, [])
     achieved = (n - 1) * dt / ((clock[-1] - clock[0]) * 1e-9) if len(clock) > 1 and \
         clock[-1] > clock[0] else 0.0
     if achieved < 0.97 * rtf:
         problems.append(f'simulated time ran at {achieved:.3f} x real time')
     # The end of the camera -> tracker chain (the recorder's own lag on the 2.7 MB images, up
     # to 2.4 s at rtf 0.5, loses nothing and is not counted).
-    tracked = log_times.get('/saw/tracking/status', [])
+    tracked = log_times.get(topics.TRACKING_STATUS, [])
     lag = (tracked[-1] - clock[-1]) * 1e-9 if tracked and clock else float('inf')
     if lag > MAX_LAG:
         problems.append(f'last tracking status {lag:.2f} s after the last step')
@@ -281,11 +281,11 @@ def main(argv: List[str]) -> int:
     if a.rtf is None:
         print(json.dumps(run(a.quick)))
         return 0
-    topics = [t for t in a.topics.split(',') if t] or None
+    record = [t for t in a.topics.split(',') if t] or None
     if a.keep is not None:
         a.keep.mkdir(parents=True, exist_ok=True)
     from saw_ros.bench import log_dir
-    print(json.dumps(measure(a.rtf, a.duration, a.keep or log_dir('pipeline'), topics)))
+    print(json.dumps(measure(a.rtf, a.duration, a.keep or log_dir('pipeline'), record)))
     return 0
 
 

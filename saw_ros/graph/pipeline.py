@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Dict, List, Optional
 
+from saw_ros.interface import topics
 from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command
 
 
@@ -48,12 +49,8 @@ def _tail(path: Path, lines: int = 15) -> str:
 
 # What the graph's recorder records by default: every topic but the raw camera frames, which
 # camera.mp4 keeps (why: docs/measurements.md). ``record_topics=ALL_TOPICS`` keeps them too.
-RECORDED_TOPICS = ['/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
-                   '/saw/joint_states', '/saw/camera/camera_info', '/saw/tracking/pose',
-                   '/saw/tracking/front', '/saw/tracking/back', '/saw/tracking/twist',
-                   '/saw/tracking/twist_smoothed', '/saw/tracking/steady_speed',
-                   '/saw/tracking/status', '/saw/comparison']
-ALL_TOPICS = RECORDED_TOPICS + ['/saw/camera/image_raw']
+RECORDED_TOPICS = topics.recorded_topics()
+ALL_TOPICS = [t.name for t in topics.TOPICS]
 
 
 def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float = 1.0,
@@ -157,9 +154,9 @@ def write_report(run: PipelineRun) -> Path:
 
     truth, tracked = [], []
     reader = BagReader(str(run.bag_dir))
-    for m, pose in reader.decoded_messages(['/saw/pose', '/saw/tracking/pose']):
+    for m, pose in reader.decoded_messages([topics.POSE, topics.TRACKING_POSE]):
         t = pose.header.stamp.sec + pose.header.stamp.nanosec * 1e-9
-        (truth if m.topic == '/saw/pose' else tracked).append((t, pose.pose.position.x))
+        (truth if m.topic == topics.POSE else tracked).append((t, pose.pose.position.x))
     truth, tracked = np.array(truth), np.array(tracked)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
     c = run.comparison

@@ -37,6 +37,7 @@ from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
 from saw_ros.core.params import Scenario
+from saw_ros.interface import topics
 from saw_ros.ros.params import SIMULATOR_EXCLUDED, accept_integers_for_doubles
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_events
@@ -120,12 +121,13 @@ class ComparisonNode(Node):
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self._last_truth_wall = None
         self._last_truth_ns = None       # stamp of the latest pose
-        self.publisher = self.create_publisher(DiagnosticArray, '/saw/comparison', LATCHED_QOS)
-        self._truth_sub = self.create_subscription(PoseStamped, '/saw/pose', self._on_truth,
+        self.publisher = self.create_publisher(DiagnosticArray, topics.COMPARISON, LATCHED_QOS)
+        self._truth_sub = self.create_subscription(PoseStamped, topics.POSE, self._on_truth,
                                                    with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
         # 'ground truth matched' once /saw/pose has a publisher (run_pipeline waits for it).
         self._match_timer = self.create_timer(0.05, self._report_matched, clock=self._wall)
-        self.create_subscription(PoseStamped, '/saw/tracking/pose', self._on_tracked, TRACK_QOS)
+        self.create_subscription(PoseStamped, topics.TRACKING_POSE, self._on_tracked,
+                                 TRACK_QOS)
         self.create_subscription(ParameterEvent, '/parameter_events', self._on_parameter_event,
                                  QoSProfile(depth=100))
         self._param_client = self.create_client(

@@ -32,6 +32,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from saw_ros.bag.reader import BagReader, BagReadError
 from saw_ros.ros.conversions import clock_cdr
+from saw_ros.interface.topics import CLOCK
 from saw_ros.ros.qos import CLOCK_QOS, message_class
 from saw_ros.ros.runtime import NodeFailure, run_node
 
@@ -106,13 +107,13 @@ class Player(Node):
                 continue
             self.publishers_by_topic[name] = self.create_publisher(
                 msg_type, name, offered_qos(t.offered_qos_profiles, int(p['queue_depth'])))
-        self.clock_from_log = bool(p['clock']) and '/clock' not in topics
+        self.clock_from_log = bool(p['clock']) and CLOCK not in topics
         if not p['clock']:
-            self.publishers_by_topic.pop('/clock', None)
+            self.publishers_by_topic.pop(CLOCK, None)
         self.clock_pub = None
         if self.clock_from_log:
             from rosgraph_msgs.msg import Clock
-            self.clock_pub = self.create_publisher(Clock, '/clock', CLOCK_QOS)
+            self.clock_pub = self.create_publisher(Clock, CLOCK, CLOCK_QOS)
         self.played = 0
         self._executor = None       # serves the parameter services while playing
         self._spinner = None

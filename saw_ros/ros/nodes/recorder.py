@@ -48,6 +48,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from saw_ros.bag.schema import UnknownMessageType, check_definitions
 from saw_ros.bag.writer import BagWriteError, BagWriter, INFINITE, qos_profile_dict
+from saw_ros.interface.topics import CLOCK, PREFIX
 from saw_ros.ros.qos import message_class
 from saw_ros.ros.runtime import NodeFailure, run_node
 
@@ -78,7 +79,7 @@ def default_topics():
         with open(path, encoding='utf-8') as f:
             doc = yaml.safe_load(f) or {}
         return list(doc.get('topics') or []), list(doc.get('prefixes') or [])
-    return ['/clock'], ['/saw/']
+    return [CLOCK], [PREFIX]
 
 
 def default_excluded() -> List[str]:

@@ -29,12 +29,9 @@ from __future__ import annotations
 import math
 import time
 
-from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, PointCloud2
 from std_srvs.srv import Trigger
 
 from saw_ros.ros import conversions as conv
@@ -44,13 +41,13 @@ from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
 from saw_ros.ros.params import SIMULATOR_EXCLUDED, ScenarioParameters, accept_integers_for_doubles
-from saw_ros.ros.qos import CLOCK_QOS, PUBLISHER_DEPTH, STREAM_QOS, with_depth
+from saw_ros.interface import topics
+from saw_ros.ros.qos import message_class, publisher_profile
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_node
 
 # What the node publishes every step, in this order (tests and benchmarks subscribe from here).
-TOPICS = {'/clock': Clock, '/saw/pose': PoseStamped, '/saw/twist': TwistStamped,
-          '/saw/contacts': PointCloud2, '/saw/contact_wrench': WrenchStamped,
-          '/saw/joint_states': JointState}
+# (saw_ros.interface.topics: the simulator's rows of the topic table.)
+TOPICS = {t.name: message_class(t.type) for t in topics.published_by('simulator')}
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
 MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
@@ -97,8 +94,7 @@ class SimulatorNode(Node):
         self._joint_names = conv.joint_names(scenario.robot.wave_links)
 
         self._publishers_all = tuple(
-            self.create_publisher(msg_type, topic, with_depth(
-                CLOCK_QOS if topic == '/clock' else STREAM_QOS, PUBLISHER_DEPTH))
+            self.create_publisher(msg_type, topic, publisher_profile(topics.topic(topic).qos))
             for topic, msg_type in TOPICS.items())
         (self._pub_clock, self._pub_pose, self._pub_twist, self._pub_contacts, self._pub_wrench,
          self._pub_joints) = self._publishers_all

@@ -1,0 +1,141 @@
+"""The topic table: every topic our nodes publish, in one place (pure: no rclpy).
+
+Each entry names the topic, its message type ('geometry_msgs/msg/PoseStamped'), its QoS profile
+by name (``saw_ros.ros.qos.profile`` / ``publisher_profile`` turn it into an rclpy QoSProfile;
+``saw_ros.ros.qos.message_class`` the type into its class), the node that publishes it, rate,
+frame and a one-line description. The nodes, the graph, the benchmarks and the tests take
+topic names from here; ``msg_config/record_topics.yaml`` is generated from it
+(``python -m saw_ros.interface.topics --write-record-yaml msg_config/record_topics.yaml``) and
+the README's topic table is checked against it (tests/test_topics.py).
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from typing import List, Tuple
+
+
+@dataclass(frozen=True)
+class Topic:
+    name: str
+    type: str           # 'package/msg/Name'
+    qos: str            # profile name: stream, clock, image, tracking, latched
+    publisher: str      # node name
+    rate: str
+    frame: str          # '' when the topic has no frame
+    description: str
+    recorded: bool = True   # by the recorder by default (msg_config/record_topics.yaml)
+
+
+CLOCK = '/clock'
+POSE = '/saw/pose'
+TWIST = '/saw/twist'
+CONTACTS = '/saw/contacts'
+CONTACT_WRENCH = '/saw/contact_wrench'
+JOINT_STATES = '/saw/joint_states'
+IMAGE = '/saw/camera/image_raw'
+CAMERA_INFO = '/saw/camera/camera_info'
+TRACKING_FRONT = '/saw/tracking/front'
+TRACKING_BACK = '/saw/tracking/back'
+TRACKING_POSE = '/saw/tracking/pose'
+TRACKING_TWIST = '/saw/tracking/twist'
+TRACKING_TWIST_SMOOTHED = '/saw/tracking/twist_smoothed'
+TRACKING_STEADY_SPEED = '/saw/tracking/steady_speed'
+TRACKING_STATUS = '/saw/tracking/status'
+COMPARISON = '/saw/comparison'
+PREFIX = '/saw/'
+
+TOPICS: Tuple[Topic, ...] = (
+    Topic(CLOCK, 'rosgraph_msgs/msg/Clock', 'clock', 'simulator', '1000 Hz', '',
+          'simulated time, one per step'),
+    Topic(POSE, 'geometry_msgs/msg/PoseStamped', 'stream', 'simulator', '1000 Hz', 'surface',
+          'robot pose (centre of mass, pitch)'),
+    Topic(TWIST, 'geometry_msgs/msg/TwistStamped', 'stream', 'simulator', '1000 Hz', 'surface',
+          'robot velocity'),
+    Topic(CONTACTS, 'sensor_msgs/msg/PointCloud2', 'stream', 'simulator', '1000 Hz', 'surface',
+          'contact points with their forces, link, surface and slipping'),
+    Topic(CONTACT_WRENCH, 'geometry_msgs/msg/WrenchStamped', 'stream', 'simulator', '1000 Hz',
+          'base_link', 'net contact force and moment about the COM'),
+    Topic(JOINT_STATES, 'sensor_msgs/msg/JointState', 'stream', 'simulator', '1000 Hz',
+          'base_link', 'helix phase and the links'),
+    Topic(IMAGE, 'sensor_msgs/msg/Image', 'image', 'camera', '60 Hz', 'saw_camera',
+          'virtual camera frames, bgr8 1280x720', recorded=False),
+    Topic(CAMERA_INFO, 'sensor_msgs/msg/CameraInfo', 'image', 'camera', '60 Hz', 'saw_camera',
+          'K, P matching the rendering'),
+    Topic(TRACKING_FRONT, 'geometry_msgs/msg/PointStamped', 'tracking', 'vision', '60 Hz',
+          'surface', 'front marker centre'),
+    Topic(TRACKING_BACK, 'geometry_msgs/msg/PointStamped', 'tracking', 'vision', '60 Hz',
+          'surface', 'back marker centre'),
+    Topic(TRACKING_POSE, 'geometry_msgs/msg/PoseStamped', 'tracking', 'vision', '60 Hz',
+          'surface', 'tracked robot position and pitch'),
+    Topic(TRACKING_TWIST, 'geometry_msgs/msg/TwistStamped', 'tracking', 'vision', '60 Hz',
+          'surface', 'instantaneous tracked speed'),
+    Topic(TRACKING_TWIST_SMOOTHED, 'geometry_msgs/msg/TwistStamped', 'tracking', 'vision',
+          '60 Hz', 'surface', 'tracked speed, least squares over 0.25 s'),
+    Topic(TRACKING_STEADY_SPEED, 'geometry_msgs/msg/TwistStamped', 'tracking', 'vision',
+          '60 Hz', 'surface', 'steady mean tracked speed'),
+    Topic(TRACKING_STATUS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking', 'vision', '60 Hz',
+          '', 'tracker state per frame'),
+    Topic(COMPARISON, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'comparison', '~1 Hz',
+          '', 'AR of simulation and tracking, their relative error'),
+)
+BY_NAME = {t.name: t for t in TOPICS}
+
+
+def topic(name: str) -> Topic:
+    return BY_NAME[name]
+
+
+def published_by(node: str) -> Tuple[Topic, ...]:
+    return tuple(t for t in TOPICS if t.publisher == node)
+
+
+def recorded_topics() -> List[str]:
+    """What the recorder records by default: every topic of the table but the raw frames."""
+    return [t.name for t in TOPICS if t.recorded]
+
+
+def record_topics_yaml() -> str:
+    """The text of msg_config/record_topics.yaml."""
+    lines = ['# Generated from saw_ros/interface/topics.py (python -m saw_ros.interface.topics',
+             '# --write-record-yaml msg_config/record_topics.yaml); tests/test_topics.py pins it.',
+             '# Topics the recorder takes by default (node `recorder`, parameter `topics` empty): '
+             'every topic',
+             '# the saw_ros nodes publish, and /clock, but the raw camera frames. A topic that '
+             'appears later is',
+             '# picked up when it appears.',
+             'topics:']
+    last = None
+    for t in TOPICS:
+        if not t.recorded:
+            continue
+        note = f'# {t.publisher}, {t.rate}' if t.publisher != last else ''
+        last = t.publisher
+        lines.append(f'  - {t.name:<32}{note}'.rstrip())
+    lines += ['# Every topic under these prefixes is recorded too (tracker outputs may grow)...',
+              'prefixes:', f'  - {PREFIX}',
+              '# ...but these. /saw/camera/image_raw: 60 fps of 1280x720 bgr8 is 166 MB/s, '
+              '1.3 GB of bag a',
+              '# minute; on 2 cores the recorder did not keep up (1.9 GB of memory, ~20 % of '
+              'the images lost)',
+              "# and the camera's video file (`video_path`) keeps the frames anyway. Record "
+              'them with',
+              '# `-p exclude_topics:="[\'\']"` (or by naming the topic in `topics`).',
+              'exclude:']
+    lines += [f'  - {t.name}' for t in TOPICS if not t.recorded]
+    return '\n'.join(lines) + '\n'
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 2 or argv[0] != '--write-record-yaml':
+        print('usage: python -m saw_ros.interface.topics --write-record-yaml PATH',
+              file=sys.stderr)
+        return 2
+    with open(argv[1], 'w', encoding='utf-8') as f:
+        f.write(record_topics_yaml())
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,42 @@
+"""The topic table (saw_ros/interface/topics.py) is the one source: the generated
+msg_config/record_topics.yaml and the README's topic table agree with it."""
+import re
+from pathlib import Path
+
+import yaml
+
+from saw_ros.interface import topics
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_record_topics_yaml_is_generated_from_the_table():
+    """Regenerate with `python -m saw_ros.interface.topics --write-record-yaml
+    msg_config/record_topics.yaml`."""
+    text = (ROOT / 'msg_config' / 'record_topics.yaml').read_text(encoding='utf-8')
+    assert text == topics.record_topics_yaml()
+    doc = yaml.safe_load(text)
+    assert doc['topics'] == topics.recorded_topics()
+    assert doc['exclude'] == [topics.IMAGE]
+
+
+def _readme_topics():
+    text = (ROOT / 'README.md').read_text(encoding='utf-8')
+    section = text.split('### Topics', 1)[1].split('\n#', 1)[0]
+    rows = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip('|').split('|')]
+        if len(cells) < 6 or not cells[0].startswith('`/'):
+            continue
+        for name in re.findall(r'`(/[^`]+)`', cells[0]):
+            rows[name] = (cells[1], cells[-1])
+    return rows
+
+
+def test_readme_topic_table_matches_the_table():
+    rows = _readme_topics()
+    assert set(rows) == set(topics.BY_NAME), set(rows) ^ set(topics.BY_NAME)
+    for name, (type_cell, publisher) in rows.items():
+        t = topics.topic(name)
+        assert type_cell.startswith(t.type.replace('/msg/', '/')), (name, type_cell, t.type)
+        assert publisher == t.publisher, (name, publisher, t.publisher)
