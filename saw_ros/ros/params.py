@@ -24,23 +24,26 @@ from saw_ros.core.params import ParameterError, Scenario, range_text
 
 
 _TYPES = ((bool, ParameterType.PARAMETER_BOOL), (int, ParameterType.PARAMETER_INTEGER),
-          (float, ParameterType.PARAMETER_DOUBLE), (str, ParameterType.PARAMETER_STRING))
+          (float, ParameterType.PARAMETER_DOUBLE), (str, ParameterType.PARAMETER_STRING),
+          (list, ParameterType.PARAMETER_STRING_ARRAY))
 
 
 def descriptor(name: str, value, meta: Dict, read_only: bool = False) -> ParameterDescriptor:
     """ParameterDescriptor for one spec() entry (a Scenario's, a vision dataclass's or a node's
-    own): description [unit], range, constraints."""
+    own): description [unit], range, constraints. ``ros_range=False`` in the metadata: no ROS
+    range, the node checks the bounds itself (with its own message)."""
     unit = meta.get('unit') or ''
     kind = next(t for cls, t in _TYPES if isinstance(value, cls))
     is_int = kind == ParameterType.PARAMETER_INTEGER
     numeric = kind in (ParameterType.PARAMETER_INTEGER, ParameterType.PARAMETER_DOUBLE)
     desc = ParameterDescriptor(
         name=name, type=kind, read_only=read_only,
-        description=meta.get('description', '') + (f' [{unit}]' if unit else ''),
+        description=meta.get('description', '') + (f' [{unit}]' if unit else '')
+        + (' (start-up only)' if read_only else ''),
         additional_constraints=f'allowed {range_text(meta)}' if numeric and 'low' in meta
         else '')
     low, high = meta.get('low'), meta.get('high')
-    if numeric and low is not None and high is not None:
+    if numeric and low is not None and high is not None and meta.get('ros_range', True):
         if is_int:
             desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
         else:
@@ -65,13 +68,15 @@ def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> N
 def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: bool = True
                  ) -> Dict[str, object]:
     """Declares spec() entries (name, default, metadata) on ``node`` with their descriptors
-    (read-only by default: read at start-up only) and returns {name: value}. An integer given for
+    (read-only by default: read at start-up only; an entry's ``read_only`` metadata decides for
+    it) and returns {name: value}. An integer given for
     a double (``-p fps:=30``) is taken as a double. Raises rclpy's ParameterException (an
     out-of-range value: InvalidParameterValueException) for an invalid start-up value."""
     entries = list(entries)
     defaults = {n: v for n, v, _ in entries}
     accept_integers_for_doubles(node, defaults, defaults)
-    declared = node.declare_parameters('', [(n, v, descriptor(n, v, m, read_only=read_only))
+    declared = node.declare_parameters('', [(n, v, descriptor(n, v, m,
+                                                             m.get('read_only', read_only)))
                                             for n, v, m in entries])
     return {p.name: p.value for p in declared}
 
@@ -153,7 +158,7 @@ class ScenarioParameters:
 
 def spec_comment(value, meta: Dict) -> str:
     """The YAML comment of a spec() entry: range and unit of a number, then its description."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or 'low' not in meta:
         unit = meta.get('unit') or ''
         return meta['description'] + (f' [{unit}]' if unit else '')
     return f'{range_text(meta)}: {meta["description"]}'

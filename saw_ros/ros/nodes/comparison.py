@@ -25,7 +25,7 @@ from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import (ParameterDescriptor, ParameterEvent, ParameterType,
+from rcl_interfaces.msg import (ParameterEvent, ParameterType,
                                 SetParametersResult)
 from rcl_interfaces.srv import GetParameters
 from rclpy.clock import Clock, ClockType
@@ -36,11 +36,12 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
-from saw_ros.core.params import Scenario
+from saw_ros.core.params import Scenario, spec_meta
 from saw_ros.interface import topics
-from saw_ros.ros.params import SIMULATOR_EXCLUDED, accept_integers_for_doubles
+from saw_ros.ros.params import SIMULATOR_EXCLUDED, declare_spec
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_events
+from saw_ros.ros.ready import Readiness
 
 TRACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -53,20 +54,27 @@ def _value(p):
             ParameterType.PARAMETER_STRING: p.string_value}.get(p.type)
 
 
-# (name, default, description, read-only): read-only ones are read once, at start.
+# (name, default, spec metadata); read_only ones are read once, at start. The node checks the
+# bounds itself (POSITIVE), with its own message.
 PARAMETERS = (
-    ('simulator_node', 'simulator', 'name of the simulator node whose parameters define the run',
-     True),
-    ('reference_file', '', 'CSV of measured results (slope_deg, voltage_V, speed_cm_s and/or '
-                           'advance_ratio); empty = none. See msg_config/reference_paper.csv',
-     True),
-    ('steady_threshold', 0.02, 'CCI below which the ground truth counts as steady (fraction, '
-                               '> 0)', True),
-    ('report_period', 1.0, 'wall-clock seconds between reports on /saw/comparison (> 0)', True),
-    ('idle_timeout', 2.0, 'wall-clock seconds without ground truth after which the run has '
-                          'ended and the final summary is published (> 0)', False),
-    ('report_path', '', 'write the final summary as JSON here; empty = do not', False),
-    ('exit_when_done', False, 'exit (code 0) after publishing the final summary', False),
+    ('simulator_node', 'simulator', spec_meta(
+        '', 'name of the simulator node whose parameters define the run', read_only=True)),
+    ('reference_file', '', spec_meta(
+        '', 'CSV of measured results (slope_deg, voltage_V, speed_cm_s and/or advance_ratio); '
+            'empty = none. See msg_config/reference_paper.csv', read_only=True)),
+    ('steady_threshold', 0.02, spec_meta(
+        '', 'CCI below which the ground truth counts as steady (fraction)', 0.0, None,
+        low_open=True, read_only=True)),
+    ('report_period', 1.0, spec_meta('s', 'wall-clock seconds between reports on '
+                                          '/saw/comparison', 0.0, None, low_open=True,
+                                     read_only=True)),
+    ('idle_timeout', 2.0, spec_meta('s', 'wall-clock seconds without ground truth after which the '
+                                         'run has ended and the final summary is published', 0.0,
+                                    None, low_open=True, read_only=False)),
+    ('report_path', '', spec_meta('', 'write the final summary as JSON here; empty = do not',
+                                  read_only=False)),
+    ('exit_when_done', False, spec_meta('', 'exit (code 0) after publishing the final summary',
+                                        read_only=False)),
 )
 POSITIVE = ('steady_threshold', 'report_period', 'idle_timeout')
 
@@ -98,13 +106,8 @@ def read_reference(path: str):
 class ComparisonNode(Node):
     def __init__(self, **kwargs):
         super().__init__('comparison', **kwargs)
-        doubles = {n: d for n, d, _, _ in PARAMETERS if isinstance(d, float)}
-        accept_integers_for_doubles(self, doubles, doubles)
         try:
-            for name, default, text, read_only in PARAMETERS:
-                self.declare_parameter(name, default, ParameterDescriptor(
-                    description=text + (' (start-up only)' if read_only else ''),
-                    read_only=read_only))
+            declare_spec(self, PARAMETERS)
             for name in POSITIVE:
                 _check_positive(name, self.get_parameter(name).value)
         except (ParameterException, ValueError) as exc:
@@ -124,7 +127,9 @@ class ComparisonNode(Node):
         self.publisher = self.create_publisher(DiagnosticArray, topics.COMPARISON, LATCHED_QOS)
         self._truth_sub = self.create_subscription(PoseStamped, topics.POSE, self._on_truth,
                                                    with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
-        # 'ground truth matched' once /saw/pose has a publisher (run_pipeline waits for it).
+        # 'ground truth matched' once /saw/pose has a publisher, said ready on /saw/ready
+        # (run_pipeline waits for it).
+        self._readiness = Readiness(self)
         self._match_timer = self.create_timer(0.05, self._report_matched, clock=self._wall)
         self.create_subscription(PoseStamped, topics.TRACKING_POSE, self._on_tracked,
                                  TRACK_QOS)
@@ -192,6 +197,7 @@ class ComparisonNode(Node):
     def _report_matched(self):
         if self._truth_sub.get_publisher_count() > 0:
             self.get_logger().info('ground truth matched')
+            self._readiness.announce()
             self._match_timer.cancel()
             self.destroy_timer(self._match_timer)
 

@@ -25,11 +25,11 @@ import math
 import threading
 import time
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from saw_ros.core.params import spec_meta
 from saw_ros.bag.reader import BagReader, BagReadError
 from saw_ros.ros.conversions import clock_cdr
 from saw_ros.interface.topics import CLOCK
@@ -38,15 +38,20 @@ from saw_ros.ros.runtime import NodeFailure, run_node
 
 SLEEP_MIN = 0.0005   # s: no sleep for a message due sooner than this (timing error < 0.5 ms)
 MAX_CLOCK_RATE = 1e6  # Hz: one /clock a microsecond at most
+# (name, default, spec metadata); every one read once at start, so read-only. The node checks
+# the bounds itself, with its own message (clock_rate: no ROS range, for that reason).
 PARAMETERS = (
-    ('bag', '', 'bag directory (or .mcap file) to play; required'),
-    ('rate', 1.0, 'speed factor: 1 = the recorded timing, 2 = twice as fast (> 0)'),
-    ('topics', [''], 'only these topics (empty: all)'),
-    ('clock', True, 'publish /clock: the recorded one, or made from log times at clock_rate'),
-    ('clock_rate', 1000.0, f'Hz of /clock made from log times (0 < clock_rate <= '
-                           f'{MAX_CLOCK_RATE:g})'),
-    ('queue_depth', 1000, 'publisher history depth (>= 1)'),
-    ('wait_for_subscribers', 0, 'wait (up to 10 s) for this many subscriptions before playing'),
+    ('bag', '', spec_meta('', 'bag directory (or .mcap file) to play; required')),
+    ('rate', 1.0, spec_meta('', 'speed factor: 1 = the recorded timing, 2 = twice as fast', 0.0,
+                            None, low_open=True)),
+    ('topics', [''], spec_meta('', 'only these topics (empty: all)')),
+    ('clock', True, spec_meta('', 'publish /clock: the recorded one, or made from log times at '
+                                  'clock_rate')),
+    ('clock_rate', 1000.0, spec_meta('Hz', '/clock rate made from log times', 0.0,
+                                     MAX_CLOCK_RATE, low_open=True, ros_range=False)),
+    ('queue_depth', 1000, spec_meta('', 'publisher history depth', 1, None)),
+    ('wait_for_subscribers', 0, spec_meta('', 'wait (up to 10 s) for this many subscriptions '
+                                              'before playing', 0, None)),
 )
 
 
@@ -67,16 +72,11 @@ def offered_qos(profiles, depth: int) -> QoSProfile:
 class Player(Node):
     def __init__(self):
         super().__init__('player')
-        from saw_ros.ros.params import accept_integers_for_doubles
-        doubles = {name: default for name, default, _ in PARAMETERS
-                   if isinstance(default, float)}
-        accept_integers_for_doubles(self, doubles, doubles)
+        from saw_ros.ros.params import declare_spec
         try:
             # Read once, here: read-only, so that `ros2 param set` says so instead of
             # reporting a change that would not happen.
-            p = {name: self.declare_parameter(name, default, ParameterDescriptor(
-                description=f'{text} (start-up only)', read_only=True)).value
-                for name, default, text in PARAMETERS}
+            p = declare_spec(self, PARAMETERS)
         except ParameterException as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from None
         self.p = p

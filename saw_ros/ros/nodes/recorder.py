@@ -41,11 +41,11 @@ import time
 from typing import Dict, List
 
 import yaml
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from saw_ros.core.params import spec_meta
 from saw_ros.bag.schema import UnknownMessageType, check_definitions
 from saw_ros.bag.writer import BagWriteError, BagWriter, INFINITE, qos_profile_dict
 from saw_ros.interface.topics import CLOCK, PREFIX
@@ -53,18 +53,22 @@ from saw_ros.ros.qos import message_class
 from saw_ros.ros.runtime import NodeFailure, run_node
 
 _STOP = object()
-# (name, default, description); every one read once at start, so read-only.
+# (name, default, spec metadata); every one read once at start, so read-only. The node checks
+# the bounds itself, with its own message. exclude_topics' default (None) is record_topics.yaml's.
 PARAMETERS = (
-    ('topics', [''], 'topics to record; empty: msg_config/record_topics.yaml'),
-    ('exclude_topics', None, "topics under a prefix not to record (default: record_topics.yaml's "
-                             "exclude, the raw camera frames; [''] = none)"),
-    ('output', '', 'bag directory; empty: <bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>'),
-    ('bags_dir', 'bags', 'where new bags go'),
-    ('label', 'default', 'what is recorded, for the directory name'),
-    ('queue_depth', 1000, 'subscription history depth (>= 1)'),
-    ('compression', 'zstd', 'zstd or none'),
-    ('chunk_size', 768 * 1024, 'bytes per MCAP chunk (>= 1)'),
-    ('discovery_period', 0.25, 'seconds between looks for new topics (> 0)'),
+    ('topics', [''], spec_meta('', 'topics to record; empty: msg_config/record_topics.yaml')),
+    ('exclude_topics', None, spec_meta('', "topics under a prefix not to record (default: "
+                                           "record_topics.yaml's exclude, the raw camera frames; "
+                                           "[''] = none)")),
+    ('output', '', spec_meta('', 'bag directory; empty: '
+                                 '<bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>')),
+    ('bags_dir', 'bags', spec_meta('', 'where new bags go')),
+    ('label', 'default', spec_meta('', 'what is recorded, for the directory name')),
+    ('queue_depth', 1000, spec_meta('', 'subscription history depth', 1, None)),
+    ('compression', 'zstd', spec_meta('', 'zstd or none')),
+    ('chunk_size', 768 * 1024, spec_meta('bytes', 'bytes per MCAP chunk', 1, None)),
+    ('discovery_period', 0.25, spec_meta('s', 'seconds between looks for new topics', 0.0, None,
+                                         low_open=True)),
 )
 # Types received on a second DDS participant (see Recorder.__init__).
 LARGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
@@ -188,15 +192,12 @@ def request_qos(offers: List, depth: int) -> QoSProfile:
 class Recorder(Node):
     def __init__(self):
         super().__init__('recorder')
-        from saw_ros.ros.params import accept_integers_for_doubles
-        accept_integers_for_doubles(self, ['discovery_period'], {'discovery_period': 0.25})
+        from saw_ros.ros.params import declare_spec
         try:
             # All read once, here: read-only, so that `ros2 param set` is refused with the
             # reason instead of reporting a change that would not happen.
-            for name, default, text in PARAMETERS:
-                self.declare_parameter(name, default if default is not None else (
-                    default_excluded() or ['']), ParameterDescriptor(
-                        description=f'{text} (start-up only)', read_only=True))
+            declare_spec(self, [(n, d if d is not None else (default_excluded() or ['']), m)
+                                for n, d, m in PARAMETERS])
         except ParameterException as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from None
         bad = [f'{n} = {self.get_parameter(n).value} must be > 0'
