@@ -175,7 +175,8 @@ def test_simulator_yaml_lists_every_parameter_with_the_core_defaults():
     assert all(type(flat[n]) is type(v) for n, v in expected.items())
 
 
-@pytest.mark.parametrize('node', ['simulator', 'camera', 'vision'])
+@pytest.mark.parametrize('node', ['simulator', 'camera', 'vision', 'comparison', 'recorder',
+                                  'player'])
 def test_msg_config_yaml_is_generated_from_the_parameter_definitions(node, tmp_path):
     """Every node's msg_config/<node>.yaml is what `python -m saw_ros.ros.nodes.<node>
     --write-yaml` writes from the spec() definitions the node declares its parameters from
