@@ -17,7 +17,7 @@ def test_record_topics_yaml_is_generated_from_the_table():
     assert text == topics.record_topics_yaml()
     doc = yaml.safe_load(text)
     assert doc['topics'] == topics.recorded_topics()
-    assert doc['exclude'] == [topics.IMAGE]
+    assert doc['exclude'] == [topics.IMAGE, topics.READY]
 
 
 def _readme_topics():

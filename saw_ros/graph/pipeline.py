@@ -20,6 +20,8 @@ from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command
 
 
 MATCH_TIMEOUT = 20.0     # s; then the run goes on anyway (and the bench reports what was lost)
+# Nodes whose readiness (saw_ros.ros.ready, on /saw/ready) the recorder waits for.
+READY_NODES = ('camera', 'comparison', 'vision')
 
 
 class PipelineError(RuntimeError):
@@ -88,13 +90,15 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             if p.returncode not in (None, 0):
                 raise PipelineError(f'{p.name} exited with {p.returncode}:\n{_tail(p.log_path)}')
 
-    def wait_for_log(p, texts, timeout):
-        until = time.monotonic() + timeout
-        while time.monotonic() < until and not all(t in p.output() for t in texts):
-            check_alive()
-            time.sleep(0.1)
-
+    probe = None
     try:
+        if record:
+            # Readiness from the graph: camera, comparison and vision say ready on /saw/ready
+            # (saw_ros.ros.ready); a probe process waits for them (no rclpy here). Started
+            # first, it discovers the graph while the nodes start.
+            probe = ManagedProcess('ready', node_command(
+                'ready', package='saw_ros.ros') + ['--nodes', ','.join(READY_NODES),
+                                                   '--timeout', f'{3 * MATCH_TIMEOUT:g}'], env, logs)
         # Every topic needs a subscriber before the first step: the recorder's, or with no
         # recorder the camera's and comparison's (then only /saw/pose and /saw/joint_states).
         simulator = launch('simulator', duration=float(duration),
@@ -106,19 +110,20 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                             **({'reference_file': str(reference_file)} if reference_file else {}))
         # The level camera sees the surfaces at the run's slope; the tracker must know it too.
         slope = float(scenario.get('conditions.slope', 0.0))
-        vision_node = launch('vision', use_sim_time=True, slope=slope)
-        camera_node = launch('camera', use_sim_time=True, slope=slope, **camera_params)
+        launch('vision', use_sim_time=True, slope=slope)
+        launch('camera', use_sim_time=True, slope=slope, **camera_params)
         if record:
             # With a recorder the simulator starts stepping once the recorder has matched its
             # topics (/saw/twist & co. have no other subscriber). So the recorder comes last:
-            # once camera and comparison have matched the simulator (their logs; started
-            # together, the camera or comparison sometimes matched 0.25-0.5 s after the
+            # once camera and comparison have matched the simulator (their status on /saw/ready;
+            # started together, the camera or comparison sometimes matched 0.25-0.5 s after the
             # recorder: their first poses were lost) and the tracker is up. The recorder matches
             # the camera's and tracker's topics (published from the first frame on) in the same
-            # discovery pass as the simulator's.
-            wait_for_log(camera_node, ['inputs matched'], MATCH_TIMEOUT)
-            wait_for_log(comparison, ['ground truth matched'], MATCH_TIMEOUT)
-            wait_for_log(vision_node, ['tracking the markers'], MATCH_TIMEOUT)
+            # discovery pass as the simulator's. (Not ready within MATCH_TIMEOUT: the probe
+            # exits 1 and the run goes on.)
+            while probe.returncode is None:
+                check_alive()
+                time.sleep(0.05)
             if bag_dir is None:
                 bag_dir = Path('bags') / time.strftime('%Y-%m-%d_%H-%M-%S_demo')
             extra = {'topics': '[' + ','.join(f"'{t}'" for t in (
@@ -135,6 +140,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                 progress()
             time.sleep(0.2)
     finally:
+        if probe is not None:
+            probe.stop(timeout=5.0)
         # Downstream first, the recorder last so that it keeps every message until the end.
         for p in sorted(nodes, key=lambda p: p.name == 'recorder'):
             codes[p.name] = p.stop(timeout=10.0)

@@ -20,7 +20,7 @@ class Topic:
     name: str
     type: str           # 'package/msg/Name'
     qos: str            # profile name: stream, clock, image, tracking, latched
-    publisher: str      # node name
+    publisher: str      # node name (several: 'camera, comparison')
     rate: str
     frame: str          # '' when the topic has no frame
     description: str
@@ -43,6 +43,7 @@ TRACKING_TWIST_SMOOTHED = '/saw/tracking/twist_smoothed'
 TRACKING_STEADY_SPEED = '/saw/tracking/steady_speed'
 TRACKING_STATUS = '/saw/tracking/status'
 COMPARISON = '/saw/comparison'
+READY = '/saw/ready'
 PREFIX = '/saw/'
 
 TOPICS: Tuple[Topic, ...] = (
@@ -78,6 +79,9 @@ TOPICS: Tuple[Topic, ...] = (
           '', 'tracker state per frame'),
     Topic(COMPARISON, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'comparison', '~1 Hz',
           '', 'AR of simulation and tracking, their relative error'),
+    Topic(READY, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'camera, comparison, vision',
+          'once per node', '', "node's status: name, level OK, 'ready': 'true' once its inputs "
+          'matched (saw_ros.ros.ready)', recorded=False),
 )
 BY_NAME = {t.name: t for t in TOPICS}
 
@@ -87,7 +91,7 @@ def topic(name: str) -> Topic:
 
 
 def published_by(node: str) -> Tuple[Topic, ...]:
-    return tuple(t for t in TOPICS if t.publisher == node)
+    return tuple(t for t in TOPICS if node in t.publisher.split(', '))
 
 
 def recorded_topics() -> List[str]:
@@ -120,7 +124,9 @@ def record_topics_yaml() -> str:
               'the images lost)',
               "# and the camera's video file (`video_path`) keeps the frames anyway. Record "
               'them with',
-              '# `-p exclude_topics:="[\'\']"` (or by naming the topic in `topics`).',
+              '# `-p exclude_topics:="[\'\']"` (or by naming the topic in `topics`). /saw/ready: '
+              "the nodes' start-up",
+              '# handshake (saw_ros.ros.ready), nothing to analyse.',
               'exclude:']
     lines += [f'  - {t.name}' for t in TOPICS if not t.recorded]
     return '\n'.join(lines) + '\n'

@@ -32,6 +32,7 @@ from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import (Renderer, RenderOptions, RobotPose, StampedSeries,
                                    pose_between)
 from saw_ros.vision.video import VideoError, VideoWriter
+from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import (INPUT_DEPTH, STREAM_QOS, NodeFailure, image_publisher_qos, run_node,
                      with_depth)
 
@@ -158,7 +159,8 @@ class CameraNode(Node):
             self.create_subscription(JointState, p['joint_states_topic'], self._on_joints_raw,
                                      in_qos, raw=True))
         # 'inputs matched' once both inputs have a publisher: from then on no input is missed
-        # (run_pipeline waits for this line before letting the simulator start).
+        # (said ready on /saw/ready: run_pipeline waits for it before letting the simulator start).
+        self._readiness = Readiness(self)
         # (A steady clock: with use_sim_time the node's clock stands still until /clock runs.)
         self._match_timer = self.create_timer(0.05, self._report_matched,
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -184,6 +186,7 @@ class CameraNode(Node):
     def _report_matched(self) -> None:
         if all(sub.get_publisher_count() > 0 for sub in self._inputs):
             self.get_logger().info('inputs matched')
+            self._readiness.announce()
             self._match_timer.cancel()
             self.destroy_timer(self._match_timer)
 

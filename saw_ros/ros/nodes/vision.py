@@ -38,6 +38,7 @@ from saw_ros.core.params import spec_entries, spec_meta
 from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
+from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import (IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, NodeFailure, run_node,
                      with_depth)
 
@@ -123,6 +124,8 @@ class VisionNode(Node):
             self.create_subscription(CameraInfo, p['camera_info_topic'], self._on_info,
                                      IMAGE_QOS)
         self.get_logger().info(f"tracking the markers in {p['image_topic']}")
+        self._readiness = Readiness(self)
+        self._readiness.announce()
 
     def _camera(self, width: int, height: int) -> CameraModel:
         if self.p['px_per_m'] > 0:
