@@ -32,6 +32,7 @@ from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import (Renderer, RenderOptions, RobotPose, StampedSeries,
                                    pose_between)
 from saw_ros.vision.video import VideoError, VideoWriter
+from saw_ros.interface import topics
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import (INPUT_DEPTH, STREAM_QOS, NodeFailure, image_publisher_qos, run_node,
                      with_depth)
@@ -72,8 +73,8 @@ PARAMETERS = (
     *(_RENDER[n] for n in ('noise', 'exposure', 'blur_samples', 'brightness', 'texture', 'seed')),
     ('video_path', '', spec_meta('', '.mp4 file to write the frames to; empty = none')),
     ('frame_id', 'saw_camera', spec_meta('', 'frame_id of the images and camera info')),
-    ('pose_topic', '/saw/pose', spec_meta('', 'robot pose input (PoseStamped)')),
-    ('joint_states_topic', '/saw/joint_states',
+    ('pose_topic', topics.POSE, spec_meta('', 'robot pose input (PoseStamped)')),
+    ('joint_states_topic', topics.JOINT_STATES,
      spec_meta('', "joint states input (JointState with 'helix')")),
 )
 YAML_HEADER = """\
@@ -151,8 +152,8 @@ class CameraNode(Node):
         self._helix = cdr.JointPosition('helix')
         out_qos = image_publisher_qos()
         in_qos = with_depth(STREAM_QOS, INPUT_DEPTH)
-        self._pub_image = self.create_publisher(Image, '/saw/camera/image_raw', out_qos)
-        self._pub_info = self.create_publisher(CameraInfo, '/saw/camera/camera_info', out_qos)
+        self._pub_image = self.create_publisher(Image, topics.IMAGE, out_qos)
+        self._pub_info = self.create_publisher(CameraInfo, topics.CAMERA_INFO, out_qos)
         self._inputs = (
             self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
                                      raw=True),

@@ -38,6 +38,7 @@ from saw_ros.core.params import spec_entries, spec_meta
 from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
+from saw_ros.interface import topics
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import (IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, NodeFailure, run_node,
                      with_depth)
@@ -52,9 +53,9 @@ CONFIG_FIELDS = ('hue_min', 'hue_max', 'sat_min', 'val_min', 'pink_min', 'min_ar
                  'gate', 'com_offset_x', 'com_offset_y', 'marker_line_angle', 'smooth_window',
                  'steady_window')
 PARAMETERS = (
-    ('image_topic', '/saw/camera/image_raw',
+    ('image_topic', topics.IMAGE,
      spec_meta('', 'image input (sensor_msgs/Image, bgr8 or rgb8)')),
-    ('camera_info_topic', '/saw/camera/camera_info',
+    ('camera_info_topic', topics.CAMERA_INFO,
      spec_meta('', 'camera info input (K gives the scale)')),
     ('px_per_m', 0.0, spec_meta('px/m', 'pixels per metre in the plane of motion; 0 = from '
                                         'CameraInfo', 0.0, None)),
@@ -108,13 +109,13 @@ class VisionNode(Node):
         self._pending = deque(maxlen=PENDING)
         self.results = 0
         pub = self.create_publisher
-        self._pub_front = pub(PointStamped, '/saw/tracking/front', STREAM_QOS)
-        self._pub_back = pub(PointStamped, '/saw/tracking/back', STREAM_QOS)
-        self._pub_pose = pub(PoseStamped, '/saw/tracking/pose', STREAM_QOS)
-        self._pub_twist = pub(TwistStamped, '/saw/tracking/twist', STREAM_QOS)
-        self._pub_smooth = pub(TwistStamped, '/saw/tracking/twist_smoothed', STREAM_QOS)
-        self._pub_steady = pub(TwistStamped, '/saw/tracking/steady_speed', STREAM_QOS)
-        self._pub_status = pub(DiagnosticArray, '/saw/tracking/status', STREAM_QOS)
+        self._pub_front = pub(PointStamped, topics.TRACKING_FRONT, STREAM_QOS)
+        self._pub_back = pub(PointStamped, topics.TRACKING_BACK, STREAM_QOS)
+        self._pub_pose = pub(PoseStamped, topics.TRACKING_POSE, STREAM_QOS)
+        self._pub_twist = pub(TwistStamped, topics.TRACKING_TWIST, STREAM_QOS)
+        self._pub_smooth = pub(TwistStamped, topics.TRACKING_TWIST_SMOOTHED, STREAM_QOS)
+        self._pub_steady = pub(TwistStamped, topics.TRACKING_STEADY_SPEED, STREAM_QOS)
+        self._pub_status = pub(DiagnosticArray, topics.TRACKING_STATUS, STREAM_QOS)
         # Raw: the 2.7 MB pixels are read in place (cdr.ImageView) instead of being converted
         # to a Python array and copied again.
         self.create_subscription(Image, p['image_topic'], self._on_image_raw,
