@@ -40,7 +40,7 @@ from saw_ros.ros.params import declare_spec
 from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
-from saw_ros.ros.params import SIMULATOR_EXCLUDED, ScenarioParameters, accept_integers_for_doubles
+from saw_ros.ros.params import SIMULATOR_EXCLUDED, ScenarioParameters
 from saw_ros.interface import topics
 from saw_ros.ros.qos import message_class, publisher_profile
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_node
