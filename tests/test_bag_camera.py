@@ -13,9 +13,10 @@ from saw_ros.core import Scenario
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker
+from saw_ros.interface import topics as table
 
 BAG = os.path.join(os.path.dirname(__file__), '..', 'bags', 'reference_camera')
-IMAGE, INFO, POSE = '/saw/camera/image_raw', '/saw/camera/camera_info', '/saw/pose'
+IMAGE, INFO, POSE = table.IMAGE, table.CAMERA_INFO, table.POSE
 PLANE_DISTANCE = 1.0   # m, the camera node's default `distance`: px/m = fx / distance
 
 
@@ -76,7 +77,7 @@ def test_reference_camera_is_complete(reader):
     topics = reader.topics()
     assert reader.complete and reader.metadata['version'] == 9
     # 3 s of simulated time: 3000 steps on every simulator topic, 180 frames (1/60 .. 3 s).
-    assert {topics[t].count for t in ('/clock', POSE, '/saw/joint_states')} == {3000}
+    assert {topics[t].count for t in (table.CLOCK, POSE, table.JOINT_STATES)} == {3000}
     assert topics[IMAGE].count == topics[INFO].count == 180
     stamps = [msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
               for _, msg in reader.decoded_messages([INFO])]
@@ -117,7 +118,7 @@ def test_player_into_vision_node_gives_the_same_ar(offline, tmp_path, ros_contex
 
     node = Node('bag_camera_listener', context=ros_context)
     node.create_subscription(PoseStamped, POSE, on_truth, deep, raw=True)
-    sub = node.create_subscription(PoseStamped, '/saw/tracking/pose', on_tracked, STREAM_QOS)
+    sub = node.create_subscription(PoseStamped, table.TRACKING_POSE, on_tracked, STREAM_QOS)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     spin = lambda t: executor.spin_once(timeout_sec=t)  # noqa: E731

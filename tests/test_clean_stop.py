@@ -16,11 +16,12 @@ from saw_ros.ros.cdr import stamp_ns
 from saw_ros.ros.nodes.simulator import TOPICS as SIM_TOPICS
 from saw_ros.graph.pipeline import RECORDED_TOPICS
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+from saw_ros.interface import topics as table
 
 pytestmark = pytest.mark.ros
 
 MS = 1_000_000
-INFO = '/saw/camera/camera_info'
+INFO = table.CAMERA_INFO
 STOP_TIMEOUT = 20.0     # s for one node to exit after its signal
 
 
@@ -80,9 +81,10 @@ class Graph:
                                  video_path=str(tmp_path / 'camera.mp4'),
                                  **({'width': 640, 'height': 360, 'scale': 600.0}
                                     if small else {}))
-            ready(self.camera, 'inputs matched')
-            ready(self.comparison, 'ground truth matched')
-            ready(self.vision, 'tracking the markers')
+            # run_pipeline's readiness: the nodes' status on /saw/ready, through the probe.
+            probe = ManagedProcess('ready', node_command('ready', package='saw_ros.ros') + [
+                '--nodes', 'camera,comparison,vision', '--timeout', '30'], env, logs)
+            assert probe.wait(60) == 0, probe.output()
             topics = '[' + ','.join(f"'{t}'" for t in RECORDED_TOPICS) + ']'
             self.recorder = launch('recorder', output=str(bag_dir), topics=topics)
             ready(self.simulator, 'subscribers present: starting')
@@ -203,7 +205,7 @@ def test_whole_graph_stops_cleanly_on_sigint_and_sigterm_every_time(tmp_path, ro
         start = time.monotonic()
         round_dir = tmp_path / f'round{i}'
         bag_dir = round_dir / 'bag'
-        status = Counter(ros_context, {'/saw/tracking/status': DiagnosticArray})
+        status = Counter(ros_context, {table.TRACKING_STATUS: DiagnosticArray})
         graph = Graph(round_dir, env, bag_dir, small=True)
         try:
             # 0.5-0.8 s of tracked frames (60 per simulated s): every node busy at the signal.

@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+from saw_ros.interface import topics as table
 
 pytestmark = pytest.mark.ros
 
@@ -189,13 +190,13 @@ def test_player_end_does_not_wait_forever_for_a_stalled_subscriber(tmp_path):
     player = None
     try:
         player = start(tmp_path, 'player', bag=_bag(tmp_path, n=1000), rate=0.5, clock=False,
-                       topics=['/saw/pose'], wait_for_subscribers=1)
+                       topics=[table.POSE], wait_for_subscribers=1)
         assert wait_for(lambda: 'playing' in player.output(), 30), player.output()
         listener.signal(signal.SIGSTOP)
         assert player.wait(30 + ACK_TIMEOUT) == 0, player.output()
         out = player.output()
         assert 'played 1000 messages' in out, out
-        assert 'not acknowledged by every subscriber' in out and '/saw/pose' in out, out
+        assert 'not acknowledged by every subscriber' in out and table.POSE in out, out
     finally:
         listener.signal(signal.SIGCONT)
         listener.stop()

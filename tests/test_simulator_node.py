@@ -22,6 +22,8 @@ from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 pytestmark = pytest.mark.ros
 
 from saw_ros.ros.nodes.simulator import TOPICS  # noqa: E402  (topic -> message class)
+from saw_ros.interface import topics as table  # noqa: E402
+
 MS = 1_000_000
 # Real time: 6000 messages/s, which one raw subscriber keeps up with on a shared 2-core machine.
 # (real_time_factor 0 outruns any Python subscriber of all six topics: see the node's docstring.)
@@ -62,7 +64,7 @@ class Watcher:
     def wait(self, condition, timeout):
         return wait_for(condition, timeout, spin=self.spin)
 
-    def count(self, topic='/clock'):
+    def count(self, topic=table.CLOCK):
         return len(self.raw[topic])
 
     def stamps(self, topic):
@@ -138,7 +140,7 @@ def test_streams_every_step_and_advance_like_the_core(start_simulator, watcher):
     assert done, {t: watcher.count(t) for t in TOPICS}
     assert proc.wait(timeout=15) == 0, proc.output()
     assert 'Traceback' not in proc.output()
-    clock = watcher.stamps('/clock')
+    clock = watcher.stamps(table.CLOCK)
     assert_every_step_once(clock, 1, steps)
     for topic in TOPICS:
         np.testing.assert_array_equal(watcher.stamps(topic), clock, err_msg=topic)
@@ -151,8 +153,8 @@ def test_streams_every_step_and_advance_like_the_core(start_simulator, watcher):
         sim.step()
         if k in (1000, steps):
             x[k] = (sim.q[0, 0], sim.q[3, 0], float(sim.phase[0]))
-    poses = watcher.messages('/saw/pose')
-    twists = watcher.messages('/saw/twist', steps - 1)
+    poses = watcher.messages(table.POSE)
+    twists = watcher.messages(table.TWIST, steps - 1)
     node_x = {k: poses[k - 1].pose.position.x for k in (1000, steps)}
     ar_core = (x[steps][0] - x[1000][0]) / 2.0 / v_theory(scenario.robot, scenario.frequency)
     ar_node = (node_x[steps] - node_x[1000]) / 2.0 / v_theory(scenario.robot, scenario.frequency)
@@ -162,12 +164,12 @@ def test_streams_every_step_and_advance_like_the_core(start_simulator, watcher):
     assert all(p.header.frame_id == 'surface' for p in poses[:10])
     assert all(math.isfinite(p.pose.position.x) for p in poses)
 
-    joints = watcher.messages('/saw/joint_states', steps - 1)[0]
+    joints = watcher.messages(table.JOINT_STATES, steps - 1)[0]
     assert joints.name[0] == 'helix' and len(joints.name) == 2 + scenario.robot.wave_links
     assert joints.position[0] == pytest.approx(x[steps][2])
     assert joints.velocity[0] == pytest.approx(2 * math.pi * scenario.frequency)
 
-    cloud = watcher.messages('/saw/contacts', steps - 1)[0]
+    cloud = watcher.messages(table.CONTACTS, steps - 1)[0]
     points = conv.points_of(cloud)
     assert cloud.header.frame_id == 'surface' and cloud.is_dense and cloud.height == 1
     assert len(points) > 0 and (points['normal_force'] >= 0).all()
@@ -196,14 +198,14 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     # Accepted at once: the wave starts (2 Hz) and the robot advances.
     good = watcher.set_parameter('conditions.frequency', 2.0)
     assert good.successful, good.reason
-    changed = watcher.count('/saw/pose')
-    assert watcher.wait(lambda: watcher.count('/saw/pose') >= changed + 1000, 20)
+    changed = watcher.count(table.POSE)
+    assert watcher.wait(lambda: watcher.count(table.POSE) >= changed + 1000, 20)
 
     # Reset: the robot back at its start; time goes on.
     answer = watcher.call(Trigger, '/simulator/reset', Trigger.Request())
     assert answer.success, answer.message
-    seen = watcher.count('/saw/pose')
-    assert watcher.wait(lambda: watcher.count('/saw/pose') >= seen + 200, 20)
+    seen = watcher.count(table.POSE)
+    assert watcher.wait(lambda: watcher.count(table.POSE) >= seen + 200, 20)
 
     # SIGTERM: exit 0, no traceback.
     proc.signal(signal.SIGTERM)
@@ -213,7 +215,7 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     assert 'Traceback' not in out and 'parameter change refused' in out, out
 
     # Every stamp published once, from 1 ms on, through the refusals, the change and the reset.
-    clock = watcher.stamps('/clock')
+    clock = watcher.stamps(table.CLOCK)
     assert_every_step_once(clock, 1, len(clock))
     for topic in TOPICS:
         np.testing.assert_array_equal(watcher.stamps(topic), clock[:watcher.count(topic)],
@@ -222,7 +224,7 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     # Mean over 1-2 s of simulated time (the robot rings between the compliant surfaces).
     mass = Scenario().robot.mass
     support, traction = [], []
-    for cloud in watcher.messages('/saw/contacts', 1000, 2000):
+    for cloud in watcher.messages(table.CONTACTS, 1000, 2000):
         p = conv.points_of(cloud)
         sign = np.where(p['surface'] == conv.BOTTOM, 1.0, -1.0)
         support.append(float((sign * p['normal_force']).sum()))
@@ -230,10 +232,10 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     assert np.mean(support) == pytest.approx(mass * GRAVITY * math.cos(slope), rel=0.03)
     assert np.mean(traction) == pytest.approx(mass * GRAVITY * math.sin(slope), rel=0.03)
     # The wrench (base_link axes) turned back into the surface frame says the same.
-    poses = watcher.messages('/saw/pose')
+    poses = watcher.messages(table.POSE)
     thetas = [conv.pitch_of(p.pose.orientation) for p in poses[1000:2000]]
     wrench_y = [w.wrench.force.x * math.sin(th) + w.wrench.force.y * math.cos(th)
-                for w, th in zip(watcher.messages('/saw/contact_wrench', 1000, 2000), thetas)]
+                for w, th in zip(watcher.messages(table.CONTACT_WRENCH, 1000, 2000), thetas)]
     assert np.mean(wrench_y) == pytest.approx(np.mean(support), rel=1e-3)
 
     xs = np.array([p.pose.position.x for p in poses])
@@ -252,9 +254,9 @@ def test_divergence_stops_with_an_error_and_no_nan(start_simulator, watcher):
     watcher.wait(lambda: False, 0.3)
     out = proc.output()
     assert 'diverged' in out and 'Traceback' not in out, out
-    poses = watcher.messages('/saw/pose')
+    poses = watcher.messages(table.POSE)
     assert all(np.isfinite([p.pose.position.x, p.pose.position.y]).all() for p in poses)
-    assert_every_step_once(watcher.stamps('/clock'), 1, watcher.count())
+    assert_every_step_once(watcher.stamps(table.CLOCK), 1, watcher.count())
 
 
 def test_as_fast_as_possible_still_serves_requests_and_stops_on_sigint(start_simulator,

@@ -8,6 +8,7 @@ from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator
 from saw_ros.graph.process import wait_for
 from saw_ros.vision.tracker import TrackerConfig
+from saw_ros.interface import topics as table
 
 STEADY = 2.0          # s, steady window for this short run
 DURATION = 4.6        # s of simulated time
@@ -50,20 +51,20 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
 
     camera, vision, source, executor, video, qos = nodes
     got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image')}
-    source.create_subscription(PoseStamped, '/saw/tracking/pose', got['pose'].append, qos)
-    source.create_subscription(TwistStamped, '/saw/tracking/steady_speed', got['steady'].append,
+    source.create_subscription(PoseStamped, table.TRACKING_POSE, got['pose'].append, qos)
+    source.create_subscription(TwistStamped, table.TRACKING_STEADY_SPEED, got['steady'].append,
                                qos)
-    source.create_subscription(DiagnosticArray, '/saw/tracking/status', got['status'].append,
+    source.create_subscription(DiagnosticArray, table.TRACKING_STATUS, got['status'].append,
                                qos)
-    source.create_subscription(PointStamped, '/saw/tracking/front', got['front'].append, qos)
-    source.create_subscription(CameraInfo, '/saw/camera/camera_info', got['info'].append, qos)
-    source.create_subscription(Image, '/saw/camera/image_raw',
+    source.create_subscription(PointStamped, table.TRACKING_FRONT, got['front'].append, qos)
+    source.create_subscription(CameraInfo, table.CAMERA_INFO, got['info'].append, qos)
+    source.create_subscription(Image, table.IMAGE,
                                lambda m: got['image'].append(conv.stamp_ns(m.header.stamp)), qos)
-    pub_pose = source.create_publisher(PoseStamped, '/saw/pose', qos)
-    pub_joints = source.create_publisher(JointState, '/saw/joint_states', qos)
+    pub_pose = source.create_publisher(PoseStamped, table.POSE, qos)
+    pub_joints = source.create_publisher(JointState, table.JOINT_STATES, qos)
     assert wait_for(lambda: pub_pose.get_subscription_count() >= 1
                     and pub_joints.get_subscription_count() >= 1
-                    and vision.count_publishers('/saw/camera/image_raw') >= 1, 10.0,
+                    and vision.count_publishers(table.IMAGE) >= 1, 10.0,
                     spin=lambda t: executor.spin_once(timeout_sec=t))
 
     sim = Simulator(Scenario())

@@ -14,6 +14,7 @@ from saw_ros.core import Scenario, simulate
 from saw_ros.core.metrics import analyse
 from saw_ros.ros.runtime import LATCHED_QOS, STREAM_QOS
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+from saw_ros.interface import topics as table
 
 pytestmark = pytest.mark.ros
 
@@ -26,10 +27,10 @@ class StandInTracker(Node):
     def __init__(self, context):
         super().__init__('stand_in_tracker', context=context)
         self.next_frame = 0.0
-        self.pub = self.create_publisher(PoseStamped, '/saw/tracking/pose', 100)
-        self.create_subscription(PoseStamped, '/saw/pose', self.on_pose, STREAM_QOS)
+        self.pub = self.create_publisher(PoseStamped, table.TRACKING_POSE, 100)
+        self.create_subscription(PoseStamped, table.POSE, self.on_pose, STREAM_QOS)
         self.reports = []
-        self.create_subscription(DiagnosticArray, '/saw/comparison', self.reports.append,
+        self.create_subscription(DiagnosticArray, table.COMPARISON, self.reports.append,
                                  LATCHED_QOS)
 
     def on_pose(self, msg):

@@ -9,6 +9,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from saw_ros.bag.reader import BagReader
 from saw_ros.analysis.campaign import run_campaign
 from saw_ros.graph.pipeline import run_pipeline
+from saw_ros.interface import topics
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -29,7 +30,7 @@ def test_every_node_exits_cleanly_and_the_comparison_arrives_on_its_topic(graph_
     assert graph_run.ok, {name: path.read_text()[-1500:] for name, path in graph_run.logs.items()
                           if graph_run.exit_codes.get(name)}
     reports = [deserialize_message(m.data, DiagnosticArray)
-               for m in BagReader(str(graph_run.bag_dir)).messages(['/saw/comparison'])]
+               for m in BagReader(str(graph_run.bag_dir)).messages([topics.COMPARISON])]
     final = [r for r in reports if r.status[0].name.endswith('(final)')]
     assert final, [r.status[0].message for r in reports]
     values = {kv.key: kv.value for kv in final[-1].status[0].values}
