@@ -100,7 +100,7 @@ def test_player_into_vision_node_gives_the_same_ar(offline, tmp_path, ros_contex
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from saw_ros.ros.runtime import STREAM_QOS
+    from saw_ros.ros.qos import STREAM_QOS
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     deep = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,

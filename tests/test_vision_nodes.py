@@ -21,7 +21,7 @@ def nodes(ros_context, tmp_path):
     from rclpy.parameter import Parameter
 
     from saw_ros.ros.nodes.camera import CameraNode
-    from saw_ros.ros.runtime import STREAM_QOS
+    from saw_ros.ros.qos import STREAM_QOS
     from saw_ros.ros.nodes.vision import VisionNode
 
     video = tmp_path / 'camera.mp4'

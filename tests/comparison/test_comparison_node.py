@@ -12,7 +12,7 @@ from rclpy.node import Node
 
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.metrics import analyse
-from saw_ros.ros.runtime import LATCHED_QOS, STREAM_QOS
+from saw_ros.ros.qos import LATCHED_QOS, STREAM_QOS
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.interface import topics as table
 

@@ -34,8 +34,8 @@ from saw_ros.vision.frames import (Renderer, RenderOptions, RobotPose, StampedSe
 from saw_ros.vision.video import VideoError, VideoWriter
 from saw_ros.interface import topics
 from saw_ros.ros.ready import Readiness
-from saw_ros.ros.runtime import (INPUT_DEPTH, STREAM_QOS, NodeFailure, image_publisher_qos, run_node,
-                     with_depth)
+from saw_ros.ros.qos import INPUT_DEPTH, STREAM_QOS, image_publisher_qos, with_depth
+from saw_ros.ros.runtime import NodeFailure, run_node
 
 KEEP = 2.0          # s of simulated time kept in the pose buffers
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)

@@ -40,8 +40,8 @@ from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
 from saw_ros.interface import topics
 from saw_ros.ros.ready import Readiness
-from saw_ros.ros.runtime import (IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, NodeFailure, run_node,
-                     with_depth)
+from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, with_depth
+from saw_ros.ros.runtime import NodeFailure, run_node
 
 PENDING = 30            # images kept while waiting for the first CameraInfo
 
