@@ -6,6 +6,7 @@ import pytest
 from saw_ros.core import DivergenceError, Scenario, Simulator, simulate
 from saw_ros.core.dynamics import GRAVITY
 from saw_ros.core.metrics import analyse
+from saw_ros.core.params import ParameterError
 
 
 def metrics(scenario, duration=4.0):
@@ -84,7 +85,7 @@ def test_set_scenarios_changes_conditions_at_once_and_keeps_the_state():
     sim = Simulator(Scenario())
     sim.run(1.0)
     x = sim.q[0, 0]
-    with pytest.raises(Exception, match='cannot change during a run'):
+    with pytest.raises(ParameterError, match='cannot change during a run'):
         sim.set_scenarios([Scenario().with_values({'robot.mass': 0.5})])
     sim.set_scenarios([Scenario().with_values({'conditions.frequency': 0.0})])
     assert sim.q[0, 0] == x
