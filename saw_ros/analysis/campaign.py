@@ -4,7 +4,7 @@ Each condition (slope, voltage) goes through the same chain as the ROS graph: th
 the virtual 60 fps camera and the two-marker tracker, and the comparison of the tracked AR with
 the simulated one. In-process for speed: all conditions are simulated as one batch, and the
 frames of different conditions are rendered and tracked in parallel processes. The nodes over
-DDS give the same numbers (tests/comparison/test_campaign.py holds them to 0.5 %).
+DDS give the same numbers (tests/analysis/test_campaign.py holds them to 0.5 %).
 No rclpy import.
 """
 from __future__ import annotations

@@ -6,7 +6,7 @@ by name (``saw_ros.ros.qos.profile`` / ``publisher_profile`` turn it into an rcl
 frame and a one-line description. The nodes, the graph, the benchmarks and the tests take
 topic names from here; ``msg_config/record_topics.yaml`` is generated from it
 (``python -m saw_ros.interface.topics --write-record-yaml msg_config/record_topics.yaml``) and
-the README's topic table is checked against it (tests/test_topics.py).
+the README's topic table is checked against it (tests/interface/test_topics.py).
 """
 from __future__ import annotations
 
@@ -102,7 +102,8 @@ def recorded_topics() -> List[str]:
 def record_topics_yaml() -> str:
     """The text of msg_config/record_topics.yaml."""
     lines = ['# Generated from saw_ros/interface/topics.py (python -m saw_ros.interface.topics',
-             '# --write-record-yaml msg_config/record_topics.yaml); tests/test_topics.py pins it.',
+             '# --write-record-yaml msg_config/record_topics.yaml); '
+             'tests/interface/test_topics.py pins it.',
              '# Topics the recorder takes by default (node `recorder`, parameter `topics` empty): '
              'every topic',
              '# the saw_ros nodes publish, and /clock, but the raw camera frames. A topic that '

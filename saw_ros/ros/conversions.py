@@ -136,7 +136,7 @@ def joint_names(wave_links: int) -> list:
 # to publish bytes. At six messages per step the simulator therefore publishes serialized
 # messages, encoded below (XCDR1 little-endian, the encoding rmw_fastrtps uses and rosbag2
 # records). Only the numbers change from step to step; the constant parts (frame ids, joint
-# names, PointField list) are encoded once. tests/test_conversions.py checks every encoder
+# names, PointField list) are encoded once. tests/ros/test_conversions.py checks every encoder
 # against rclpy's own serialization.
 
 def _frame_block(frame: str, then_align: int) -> bytes:

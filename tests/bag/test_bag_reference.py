@@ -8,7 +8,7 @@ from mcap.stream_reader import StreamReader
 
 from saw_ros.bag import BagReader
 
-ROOT = os.path.join(os.path.dirname(__file__), '..', 'bags')
+ROOT = os.path.join(os.path.dirname(__file__), '..', '..', 'bags')
 SIM_TOPICS = {'/clock', '/saw/pose', '/saw/twist', '/saw/contacts', '/saw/contact_wrench',
               '/saw/joint_states'}
 

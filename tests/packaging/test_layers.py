@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / 'saw_ros'
+PACKAGE = Path(__file__).resolve().parents[2] / 'saw_ros'
 # Each layer may import itself and the layers listed (transitively below it).
 ALLOWED = {
     'core': set(),

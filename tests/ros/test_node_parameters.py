@@ -149,7 +149,7 @@ def test_recorder_refuses_invalid_values_at_start(tmp_path):
 
 # -- player ----------------------------------------------------------------------------------
 def _bag(tmp_path, n=500):
-    sys.path.insert(0, os.path.dirname(__file__))
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'bag'))
     from test_bag_format import write_bag
     write_bag(tmp_path / 'src', n=n)      # n ms of /clock + /saw/pose at 1 kHz
     return str(tmp_path / 'src')

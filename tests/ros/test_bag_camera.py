@@ -15,7 +15,7 @@ from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker
 from saw_ros.interface import topics as table
 
-BAG = os.path.join(os.path.dirname(__file__), '..', 'bags', 'reference_camera')
+BAG = os.path.join(os.path.dirname(__file__), '..', '..', 'bags', 'reference_camera')
 IMAGE, INFO, POSE = table.IMAGE, table.CAMERA_INFO, table.POSE
 PLANE_DISTANCE = 1.0   # m, the camera node's default `distance`: px/m = fx / distance
 

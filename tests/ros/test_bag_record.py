@@ -97,7 +97,7 @@ def test_player_republishes_with_timing_and_clock(tmp_path, ros_context):
     from rclpy.node import Node
     from rosgraph_msgs.msg import Clock
     from geometry_msgs.msg import PoseStamped
-    sys.path.insert(0, os.path.dirname(__file__))
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), '..', 'bag'))
     from test_bag_format import write_bag
     write_bag(tmp_path / 'src', n=500)  # 0.5 s of /clock + /saw/pose at 1 kHz
     node = Node('listener', context=ros_context)

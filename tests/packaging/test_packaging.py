@@ -18,7 +18,7 @@ import pytest
 
 from saw_ros.graph.process import isolated_ros_env
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MARKER = Path('share', 'ament_index', 'resource_index', 'packages', 'saw_ros')
 
 

@@ -7,7 +7,7 @@ import yaml
 
 from saw_ros.interface import topics
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_record_topics_yaml_is_generated_from_the_table():
