@@ -1,4 +1,5 @@
-"""The paper's validation campaign (Section 6, Figures 17 and 18), in-process.
+"""
+The paper's validation campaign (Section 6, Figures 17 and 18), in-process.
 
 Each condition (slope, voltage) goes through the same chain as the ROS graph: the physics core,
 the virtual 60 fps camera and the two-marker tracker, and the comparison of the tracked AR with

@@ -1,4 +1,5 @@
-"""Simulation against tracking (paper Section 6.4.2): AR of both, and their relative error.
+"""
+Simulation against tracking (paper Section 6.4.2): AR of both, and their relative error.
 
 Pure numpy, no rclpy: the comparison node, the campaign and the tests share it.
 
@@ -71,8 +72,9 @@ VELOCITY_WINDOW = 0.010   # s
 
 
 def velocity_on_grid(t: np.ndarray, x: np.ndarray, window: float = VELOCITY_WINDOW):
-    """(grid, v): x resampled every median sample interval, v its centred difference over
-    ``window``."""
+    """
+    (grid, v): x resampled every median sample interval, v its centred difference over ``window``.
+    """
     step = float(np.median(np.diff(t)))
     grid = np.arange(t[0] + window / 2, t[-1] - window / 2 + 1e-12, step)
     v = (np.interp(grid + window / 2, t, x) - np.interp(grid - window / 2, t, x)) / window
@@ -80,8 +82,11 @@ def velocity_on_grid(t: np.ndarray, x: np.ndarray, window: float = VELOCITY_WIND
 
 
 class RunComparator:
-    """Collects ground truth (x, vx at the simulator's rate) and tracked positions (x at the
-    camera's rate), both against simulated time, and compares them on demand."""
+    """
+    Collects ground truth (x, vx at the simulator's rate) and tracked positions.
+
+    (x at the camera's rate), both against simulated time, and compares them on demand.
+    """
 
     def __init__(self, robot: RobotParams, frequency: float = float('nan'),
                  threshold: float = STEADY_CCI, min_cycles: float = 1.0):
@@ -151,8 +156,11 @@ class ReferencePoint:
 
 
 def load_reference(path: Path) -> List[ReferencePoint]:
-    """CSV with columns slope_deg, voltage_V, and speed_cm_s and/or advance_ratio (either may be
-    empty), plus an optional source; lines starting with # are comments."""
+    """
+    CSV with columns slope_deg, voltage_V, and speed_cm_s and/or advance_ratio.
+
+    (either may be empty), plus an optional source; lines starting with # are comments.
+    """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f'reference file {path} does not exist')

@@ -1,4 +1,5 @@
-"""Recorded footage as the campaign's experiment: ``saw-ros campaign --videos MANIFEST.csv``.
+"""
+Recorded footage as the campaign's experiment: ``saw-ros campaign --videos MANIFEST.csv``.
 
 The paper's Section 6 compares its model with videos of the real robot. Here each row of a
 manifest (CSV) is one recorded run: the video, the slope, the motor voltage (or the helix
@@ -153,8 +154,11 @@ def clip_speed(t, x, frequency: float) -> tuple:
 
 
 def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.0) -> Measured:
-    """Track one video (the scale from px_per_m, else from the marker spacing) and measure its
-    speed. Raises VideoError for an unreadable video."""
+    """
+    Track one video (the scale from px_per_m, else from the marker spacing) and measure its speed.
+
+    Raises VideoError for an unreadable video.
+    """
     import dataclasses
 
     from saw_ros.vision.offline import measure_scale, track_video
@@ -178,8 +182,12 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
 
 
 def simulate_conditions(scenarios: Sequence[Scenario]) -> List[tuple]:
-    """(v_sim, ar_sim, steady_from) of each scenario, all simulated as one batch; the speed is
-    the campaign's: whole cycles after steady state (RunComparator, truth against itself)."""
+    """
+    (v_sim, ar_sim, steady_from) of each scenario, all simulated as one batch.
+
+    The speed is the campaign's: whole cycles after steady state (RunComparator, truth against
+    itself).
+    """
     duration = max(duration_for(s.frequency) for s in scenarios)
     trajectory = simulate(list(scenarios), duration)
     out = []
@@ -311,9 +319,13 @@ SAMPLES = (                      # name, slope (deg), voltage, cluttered
 
 
 def clutter_for(camera, gap: float, t_end: float, flicker: float = 0.0):
-    """A busy scene for a clip seen by ``camera``: red, orange-red and orange things (one
-    passing in front), a magenta disc and a third pink marker on the wall away from the robot's
-    line, a lighting gradient and optionally flicker (vision.scene)."""
+    """
+    A busy scene for a clip seen by ``camera``.
+
+    Red, orange-red and orange things (one passing in front), a magenta disc and a third pink
+    marker on the wall away from the robot's line, a lighting gradient and optionally flicker
+    (vision.scene).
+    """
     from saw_ros.vision.scene import (HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, Clutter,
                                       SceneOptions)
     x0, x1 = camera.visible_x_range(0.0)
@@ -336,10 +348,13 @@ def clutter_for(camera, gap: float, t_end: float, flicker: float = 0.0):
 def make_clip(scenario: Scenario, path, start: float = 1.2, duration: float = 2.0,
               fps: float = 60.0, size=SAMPLE_SIZE, scale: float = SAMPLE_SCALE,
               cluttered: bool = False, noise: float = 0.0, texture: bool = False) -> dict:
-    """Simulate ``scenario`` and write the frames of [start, start + duration) as an .mp4
-    (video time 0 = ``start``); the camera is centred on the robot's path over the clip.
-    Returns the ground truth: {'t': frame times (video), 'x': true COM x, 'speed': least-squares
-    speed over the clip's whole cycles, 'px_per_m', 'frequency', 'center_x', 'center_y'}."""
+    """
+    Simulate ``scenario`` and write the frames of [start, start + duration) as an .mp4.
+
+    (video time 0 = ``start``); the camera is centred on the robot's path over the clip. Returns
+    the ground truth: {'t': frame times (video), 'x': true COM x, 'speed': least-squares speed over
+    the clip's whole cycles, 'px_per_m', 'frequency', 'center_x', 'center_y'}.
+    """
     from saw_ros.vision.camera import CameraModel
     from saw_ros.vision.frames import Renderer, RenderOptions
     from saw_ros.vision.scene import SceneOptions

@@ -1,4 +1,5 @@
-"""rosbag2-compatible bags (MCAP storage) without rosbag2: schemas, writer, reader.
+"""
+rosbag2-compatible bags (MCAP storage) without rosbag2: schemas, writer, reader.
 
 No rclpy here: the recorder and player nodes (``saw_ros/ros/nodes``) adapt ROS to these classes.
 What the files contain is described in ``docs/bags.md`` (and rosbag2's own layout in

@@ -1,5 +1,7 @@
-"""Read a bag directory (or one ``.mcap`` file): messages in file order, and a summary like
-``ros2 bag info``.
+"""
+Read a bag directory (or one ``.mcap`` file).
+
+Messages in file order, and a summary like ``ros2 bag info``.
 
 Two kinds of trouble are told apart:
 - an unfinished file (the recorder was killed: no summary, a record cut off at the end) is read
@@ -55,7 +57,7 @@ class BagDecodeError(BagReadError):
 
 
 def stamp(ns: Optional[int]) -> str:
-    """ns since the epoch as seconds.nanoseconds (or n/a)."""
+    """Ns since the epoch as seconds.nanoseconds (or n/a)."""
     if ns is None:
         return 'n/a'
     return f'{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}'
@@ -63,8 +65,12 @@ def stamp(ns: Optional[int]) -> str:
 
 @dataclass
 class Damage:
-    """One damaged place of a file: a chunk (``chunk`` = its number, from 1), or another part of
-    the file (``chunk`` None: a record, the data section, the summary)."""
+    """
+    One damaged place of a file.
+
+    A chunk (``chunk`` = its number, from 1), or another part of the file (``chunk`` None: a
+    record, the data section, the summary).
+    """
     file: str
     offset: Optional[int]                 # where in the file (None: not one place)
     reason: str
@@ -138,8 +144,11 @@ class _Short(ValueError):
 
 
 class _Exact(io.BytesIO):
-    """A record body for mcap's record parsers: a read past its end is an error (mcap's
-    ReadDataStream would return the short bytes)."""
+    """
+    A record body for mcap's record parsers.
+
+    A read past its end is an error (mcap's ReadDataStream would return the short bytes).
+    """
 
     def read(self, n=-1):
         data = super().read(n)
@@ -327,8 +336,12 @@ class BagReader:
         return '\n  '.join(lines)
 
     def expected_messages(self) -> Optional[int]:
-        """Messages the files should hold: their summaries' statistics, else metadata.yaml's
-        count, else what was read plus what the damage lost (None: unknown)."""
+        """
+        Messages the files should hold.
+
+        Their summaries' statistics, else metadata.yaml's count, else what was read plus what the
+        damage lost (None: unknown).
+        """
         if self._expected and all(n is not None for n in self._expected.values()):
             return sum(self._expected.values())
         if self.metadata and self.complete and isinstance(self.metadata.get('message_count'), int):
@@ -348,8 +361,11 @@ class BagReader:
 
     # ---- messages
     def messages(self, topics: Optional[Iterable[str]] = None) -> Iterator[BagMessage]:
-        """Every message of the bag in file order (= log time order for our recordings).
-        Raises BagDamagedError at damaged bytes unless the reader salvages."""
+        """
+        Every message of the bag in file order (= log time order for our recordings).
+
+        Raises BagDamagedError at damaged bytes unless the reader salvages.
+        """
         wanted = set(topics) if topics is not None else None
         for path in self.files:
             yield from self._scan(path, wanted)
@@ -514,8 +530,11 @@ class BagReader:
     @staticmethod
     def _chunk_damage(path, offset, number, summary: _Summary, index: Optional[ChunkIndex],
                       reason: str, body=None) -> Damage:
-        """A damaged chunk, with its log time range from the summary's chunk index (else from
-        the chunk record itself)."""
+        """
+        A damaged chunk, with its log time range from the summary's chunk index.
+
+        (else from the chunk record itself).
+        """
         start = end = None
         if index is not None:
             start, end = index.message_start_time, index.message_end_time
@@ -555,8 +574,11 @@ class BagReader:
 
     # ---- summary
     def topics(self) -> Dict[str, TopicSummary]:
-        """Per topic: type, count, first/last log time, QoS (a full scan of the files).
-        Raises BagDamagedError, listing all the damage, unless the reader salvages."""
+        """
+        Per topic: type, count, first/last log time, QoS (a full scan of the files).
+
+        Raises BagDamagedError, listing all the damage, unless the reader salvages.
+        """
         out: Dict[str, TopicSummary] = {}
         self._collect = True
         try:

@@ -1,4 +1,5 @@
-"""Message definitions and type hashes as rosbag2 stores them in an MCAP schema.
+"""
+Message definitions and type hashes as rosbag2 stores them in an MCAP schema.
 
 rosbag2 (``rosbag2_cpp/.../local_message_definition_source.cpp``) builds a ``ros2msg`` schema from
 the installed ``share/<pkg>/msg/<Type>.msg`` files: the root text, then every dependency once,
@@ -37,8 +38,11 @@ def split_type(type_name: str) -> Tuple[str, str, str]:
 
 
 def _share_file(type_name: str, extension: str) -> str:
-    """``share/<pkg>/<namespace>/<Type><extension>`` of the installed interface package: found
-    beside its Python package (no sourced environment needed), else through the ament index."""
+    """
+    ``share/<pkg>/<namespace>/<Type><extension>`` of the installed interface package.
+
+    Found beside its Python package (no sourced environment needed), else through the ament index.
+    """
     pkg, namespace, name = split_type(type_name)
     try:
         return share_file(pkg, namespace, name + extension)
@@ -47,8 +51,12 @@ def _share_file(type_name: str, extension: str) -> str:
 
 
 def check_definitions() -> None:
-    """Raise UnknownMessageType (one line saying what to source) if message definitions cannot be
-    found at all: a recorder calls it before creating its bag."""
+    """
+    Raise UnknownMessageType.
+
+    (one line saying what to source) if message definitions cannot be found at all: a recorder
+    calls it before creating its bag.
+    """
     message_definition('builtin_interfaces/msg/Time')
 
 

@@ -1,6 +1,9 @@
-"""A rosbag2 bag directory written with the ``mcap`` library: what ``ros2 bag record`` makes with
-its MCAP storage (metadata.yaml version 9, ``ros2`` profile, ``ros2msg`` schemas, channels with
-``offered_qos_profiles`` and ``topic_type_hash``, a ``rosbag2`` Metadata record, zstd chunks).
+"""
+A rosbag2 bag directory written with the ``mcap`` library.
+
+What ``ros2 bag record`` makes with its MCAP storage (metadata.yaml version 9, ``ros2`` profile,
+``ros2msg`` schemas, channels with ``offered_qos_profiles`` and ``topic_type_hash``, a ``rosbag2``
+Metadata record, zstd chunks).
 
 Messages go into the file in log_time order, as rosbag2 writes them (receive order), although
 the recorder hands them over in bursts per subscription: its callbacks take everything waiting on
@@ -112,8 +115,12 @@ def check_writable_target(directory: str) -> None:
 
 
 class _UnbufferedFile:
-    """What mcap's Writer needs of a stream (write, tell), straight to the OS: what the writer
-    hands over (whole records, whole chunks) is in the file even if the process dies next."""
+    """
+    What mcap's Writer needs of a stream (write, tell), straight to the OS.
+
+    What the writer hands over (whole records, whole chunks) is in the file even if the process
+    dies next.
+    """
 
     def __init__(self, path: str):
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
@@ -152,7 +159,8 @@ class _Topic:
 
 
 class BagWriter:
-    """Write one bag directory ``<directory>/metadata.yaml`` + ``<name>_0.mcap``.
+    """
+    Write one bag directory ``<directory>/metadata.yaml`` + ``<name>_0.mcap``.
 
     >>> bag = BagWriter('bags/run')                              # doctest: +SKIP
     >>> bag.add_topic('/saw/pose', 'geometry_msgs/msg/PoseStamped', [qos_profile_dict()])
@@ -242,8 +250,11 @@ class BagWriter:
 
     def write(self, topic: str, data: bytes, log_time: int, publish_time: Optional[int] = None,
               sequence: int = 0) -> None:
-        """One serialised message (bytes as received), times in ns since the epoch. It reaches
-        the file in log_time order, once the reorder window has passed it (or on close)."""
+        """
+        One serialised message (bytes as received), times in ns since the epoch.
+
+        It reaches the file in log_time order, once the reorder window has passed it (or on close).
+        """
         entry = self._topics[topic]
         if publish_time is None:
             publish_time = log_time
@@ -276,14 +287,21 @@ class BagWriter:
                 self._flush_until(self._newest - self.reorder_window_ns)
 
     def flush_until(self, log_time: int) -> None:
-        """Write the buffered messages with log times up to ``log_time`` (and, while the buffer
-        holds more than ``max_buffer_bytes``, the oldest others)."""
+        """
+        Write the buffered messages with log times up to ``log_time``.
+
+        (and, while the buffer holds more than ``max_buffer_bytes``, the oldest others).
+        """
         with self._lock:
             self._flush_until(log_time)
 
     def _idle_flush(self, idle_s: float) -> None:
-        """Write the whole buffer once no message has arrived for ``idle_s`` (the recording
-        went quiet: what is buffered would otherwise wait for the next message or close())."""
+        """
+        Write the whole buffer once no message has arrived for ``idle_s``.
+
+        (the recording went quiet: what is buffered would otherwise wait for the next message or
+        close()).
+        """
         period = min(0.25, idle_s / 2)
         seen, quiet = -1, 0.0
         while not self._stop.wait(period):
@@ -370,8 +388,11 @@ class BagWriter:
         }
 
     def close(self) -> None:
-        """Finish the MCAP file (rosbag2 Metadata record, summary, indexes) and write
-        metadata.yaml. Safe to call twice."""
+        """
+        Finish the MCAP file (rosbag2 Metadata record, summary, indexes) and write metadata.yaml.
+
+        Safe to call twice.
+        """
         self._stop.set()
         with self._lock:
             if self.closed:

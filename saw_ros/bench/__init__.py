@@ -1,5 +1,8 @@
-"""Benchmarks for ``saw-ros bench``: one module per area, each with ``KEYS`` (the JSON keys it
-reports) and ``run(quick: bool) -> dict``. They measure rates and ratios in one run, never assert.
+"""
+Benchmarks for ``saw-ros bench``.
+
+One module per area, each with ``KEYS`` (the JSON keys it reports) and ``run(quick: bool) ->
+dict``. They measure rates and ratios in one run, never assert.
 
 A module that runs nodes as subprocesses keeps their logs in ``log_dir(module)``: a folder of
 ``out/bench_<date-time>/`` (one per bench run; ``saw-ros bench --logs DIR`` or the environment

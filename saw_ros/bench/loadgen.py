@@ -80,8 +80,11 @@ class LoadGen(Node):
             self.counts[self.image[0]] = 0
 
     def _image_node(self) -> Node:
-        """With ``image_participant`` images go out from a DDS participant of their own, as they
-        do from the camera node (another process) in the real graph."""
+        """
+        With ``image_participant`` images go out from a DDS participant of their own.
+
+        As they do from the camera node (another process) in the real graph.
+        """
         if not self.p['image_participant']:
             return self
         import rclpy

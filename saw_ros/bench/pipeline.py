@@ -1,5 +1,8 @@
-"""Full-graph throughput: the highest real-time factor at which simulator, camera, vision,
-comparison and recorder (five processes, ``saw_ros.graph.pipeline.run_pipeline``) lose no message.
+"""
+Full-graph throughput.
+
+The highest real-time factor at which simulator, camera, vision, comparison and recorder (five
+processes, ``saw_ros.graph.pipeline.run_pipeline``) lose no message.
 
 Each rung of a ladder of real-time factors runs the real graph for ``DURATION`` s of simulated
 time (the default scenario, video on, the recorder on ``pipeline.RECORDED_TOPICS``: every
@@ -56,7 +59,7 @@ NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder')
 
 # -- CPU of the node processes --------------------------------------------------------------
 def _proc_table() -> Dict[int, tuple]:
-    """pid -> (ppid, cpu seconds, cmdline) of every process we can read."""
+    """Pid -> (ppid, cpu seconds, cmdline) of every process we can read."""
     tck = os.sysconf('SC_CLK_TCK')
     table = {}
     for entry in os.listdir('/proc'):

@@ -1,12 +1,15 @@
-"""Recorder throughput: the highest message rate it keeps with zero loss (publisher in another
-process: the ``loadgen`` node, 6 topics of the simulator's types, rate raised until messages are
-lost), and the messages lost and CPU share at the default load (1 kHz on the 6 simulator topics
-plus 60 fps 1280x720 rgb8 images).
+"""
+Recorder throughput: the highest message rate it keeps with zero loss.
+
+(publisher in another process: the ``loadgen`` node, 6 topics of the simulator's types, rate raised
+until messages are lost), and the messages lost and CPU share at the default load (1 kHz on the 6
+simulator topics plus 60 fps 1280x720 rgb8 images).
 
 The recorder is started with ``exclude_topics`` empty: the default load includes the raw images.
 Logs of every trial stay in ``log_dir('recorder')`` (the bag is deleted once counted); a trial
 whose processes do not finish in time, or whose bag cannot be read, fails (the ladder stops
-there; at the default load the figures are None), never crashes the bench."""
+there; at the default load the figures are None), never crashes the bench.
+"""
 import os
 import shutil
 import subprocess
@@ -27,8 +30,11 @@ def _cpu_seconds(pid: int) -> float:
 
 
 class TrialFailed(RuntimeError):
-    """A trial's process hung or failed, or its bag is unreadable (the message says which and
-    where the logs are)."""
+    """
+    A trial's process hung or failed, or its bag is unreadable.
+
+    (the message says which and where the logs are).
+    """
 
 
 def _trial(work: Path, name: str, env, **load):

@@ -1,4 +1,5 @@
-"""Simulator node throughput: the highest real-time factor it sustains with zero lost messages.
+"""
+Simulator node throughput: the highest real-time factor it sustains with zero lost messages.
 
 For each real_time_factor of a ladder, the simulator node runs ``duration`` of simulated time
 (60 s; 10 s with --quick) as a subprocess, and ONE subscriber process takes every topic (/clock and the
@@ -39,7 +40,8 @@ PROBE_S = 1.0               # s the subscriber looks for other publishers before
 
 
 def subscriber(steps: int, timeout: float) -> int:
-    """Child process: subscribe to every topic, count stamps, print one JSON line, exit.
+    """
+    Child process: subscribe to every topic, count stamps, print one JSON line, exit.
 
     First it makes sure no other process publishes our topics in its domain: the random domain
     ids of concurrent runs collide on a shared machine, and another simulator's messages then
@@ -47,7 +49,8 @@ def subscriber(steps: int, timeout: float) -> int:
     the bench's sub.wait(30) raised TimeoutExpired). Busy: prints 'domain busy', exits BUSY_EXIT
     and measure() retries in another domain. Else it prints 'subscribed' (measure() starts the
     simulator then) and counts until every topic has delivered the last step, 3 s pass without a
-    message, the deadline, or SIGINT/SIGTERM from measure() once the simulator has exited."""
+    message, the deadline, or SIGINT/SIGTERM from measure() once the simulator has exited.
+    """
     import signal
     import struct
 
@@ -143,8 +146,11 @@ def simulator_state(log: str) -> str:
 
 
 def _cpu_share(pid: int, span: float = 1.0) -> float:
-    """Fraction of a core ``pid`` uses over ``span`` s (nan if unreadable): a simulator still
-    stepping (too slow for the timeout) uses CPU, one that is stuck does not."""
+    """
+    Fraction of a core ``pid`` uses over ``span`` s (nan if unreadable).
+
+    A simulator still stepping (too slow for the timeout) uses CPU, one that is stuck does not.
+    """
     import os
 
     def cpu():
@@ -169,11 +175,14 @@ def _wait(proc, timeout: float):
 
 def measure(rtf: float, duration: float, log_dir: Path, timeout: float = None,
             attempts: int = 3) -> dict:
-    """One rung: simulator + subscriber processes in a private domain. Never raises for a
-    process that hangs: the rung fails (``hung``) and the processes are stopped. ``timeout``:
-    for the simulator (default 3 x the expected wall time + 30 s). A domain that another run
-    uses already (the subscriber finds publishers of our topics before ours starts, or more
-    than one publisher during the rung) is tried again in another, ``attempts`` times in all."""
+    """
+    One rung: simulator + subscriber processes in a private domain.
+
+    Never raises for a process that hangs: the rung fails (``hung``) and the processes are stopped.
+    ``timeout``: for the simulator (default 3 x the expected wall time + 30 s). A domain that
+    another run uses already (the subscriber finds publishers of our topics before ours starts, or
+    more than one publisher during the rung) is tried again in another, ``attempts`` times in all.
+    """
     from saw_ros.bench import tail
     logs = Path(log_dir) / f'rtf_{rtf:g}'
     busy = []

@@ -1,5 +1,8 @@
-"""Issue 4 figures: tracker and renderer frames per second at 1280x720, and the tracker's
-accuracy on clean rendered frames at the defaults against the simulation's ground truth.
+"""
+Issue 4 figures: tracker and renderer frames per second at 1280x720.
+
+And the tracker's accuracy on clean rendered frames at the defaults against the simulation's ground
+truth.
 
 Issue 12 figures: the tracker on footage it was not tuned on (``synthetic.hard_footage``: red,
 orange-red, orange and magenta clutter, three more hot-pink markers (behind the robot, ahead of
@@ -8,7 +11,8 @@ blur, barrel lens distortion with its calibration given, and the run through the
 tracked as a user would (``TrackerConfig(marker_spacing=0.32)``, the robot's marker spacing):
 ``tracker_cluttered_speed_error_pct`` (steady speed against the true whole-cycle mean speed;
 goal <= 0.5) and ``tracker_cluttered_ok_frames_pct`` (frames with both markers measured, % of
-the frames where both are in full view; goal >= 99)."""
+the frames where both are in full view; goal >= 99).
+"""
 import time
 
 from saw_ros.core import Scenario

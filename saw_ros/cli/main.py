@@ -1,6 +1,10 @@
-"""``saw-ros``: the offline command. Each subcommand lives in ``saw_ros/cli/commands/<name>.py`` with
-``HELP`` (one line), ``add_arguments(parser)`` and ``run(args) -> int``; they are found there, so
-adding a command is adding a file."""
+"""
+``saw-ros``: the offline command.
+
+Each subcommand lives in ``saw_ros/cli/commands/<name>.py`` with ``HELP`` (one line),
+``add_arguments(parser)`` and ``run(args) -> int``; they are found there, so adding a command is
+adding a file.
+"""
 from __future__ import annotations
 
 import argparse

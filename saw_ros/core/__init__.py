@@ -1,4 +1,5 @@
-"""The paper's physics as a pure numpy library: no rclpy import anywhere below this package.
+"""
+The paper's physics as a pure numpy library: no rclpy import anywhere below this package.
 
 Modules are named after the concepts of the paper: ``params`` (typed parameters), ``kinematics``
 (Section 4.1, Appendix A.1), ``contact`` (Section 4.2), ``dynamics`` (Section 4.3), ``statics``

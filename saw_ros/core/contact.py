@@ -1,4 +1,5 @@
-"""Contact law between a link tip and a compliant surface (paper Section 4.2, Eqs. 6-8, A.2).
+"""
+Contact law between a link tip and a compliant surface (paper Section 4.2, Eqs. 6-8, A.2).
 
 Normal: Hertz with restitution hysteresis (Eq. 7), Fn = kn delta^p while the penetration grows
 and e kn delta^p while it shrinks. Switching the factor between 1 and e on the sign of the rate
@@ -89,15 +90,21 @@ class ContactState:
 
 
 def hysteresis_factor(rate, restitution, hysteresis_speed):
-    """The force factor for a deformation rate (m/s): 1 loading, e unloading, linear between
-    -v0 and v0 (pure, for tests and plots)."""
+    """
+    The force factor for a deformation rate (m/s): 1 loading, e unloading, linear between.
+
+    -v0 and v0 (pure, for tests and plots).
+    """
     return (1.0 + restitution) / 2.0 + (1.0 - restitution) / 2.0 * np.clip(
         np.asarray(rate, float) / hysteresis_speed, -1.0, 1.0)
 
 
 def _hysteresis(gain, now, before, stiffness_mean, stiffness_half_span, rate_gain):
-    """gain = k ((1 + e)/2 + (1 - e)/2 clip(rate / v0, -1, 1)) from the change of ``now``,
-    with the constants folded: k (1 + e)/2, k (1 - e)/2 and k (1 - e)/2 / (v0 dt)."""
+    """
+    Gain = k ((1 + e)/2 + (1 - e)/2 clip(rate / v0, -1, 1)) from the change of ``now``.
+
+    With the constants folded: k (1 + e)/2, k (1 - e)/2 and k (1 - e)/2 / (v0 dt).
+    """
     np.subtract(now, before, out=gain)
     gain *= rate_gain
     np.minimum(gain, stiffness_half_span, out=gain)    # two ufuncs: np.clip is 3x slower here
@@ -106,7 +113,8 @@ def _hysteresis(gain, now, before, stiffness_mean, stiffness_half_span, rate_gai
 
 
 def contact_step(state: ContactState, penetration, x, law) -> tuple:
-    """Advance the contact law one step for tips at ``penetration`` and abscissa ``x``.
+    """
+    Advance the contact law one step for tips at ``penetration`` and abscissa ``x``.
 
     ``law`` holds the folded constants (scalars, or (S, P) arrays where scenarios differ):
     kn_mean, kn_half, kn_rate, kt_mean, kt_half, kt_rate (see ``_hysteresis``), exponent, mu.

@@ -1,4 +1,5 @@
-"""Rigid-body dynamics of the robot between the surfaces (paper Section 4.3, pseudo-code A.2).
+"""
+Rigid-body dynamics of the robot between the surfaces (paper Section 4.3, pseudo-code A.2).
 
 The robot is one rigid body (COM x, y, pitch theta) whose links move with the prescribed wave.
 At every step: tips from the kinematics table, contact forces, then semi-implicit Euler,
@@ -39,8 +40,11 @@ def tip_table(robot: RobotParams) -> TipTable:
 
 @dataclass
 class Trajectory:
-    """Recorded states of S scenarios: t (n,), q (n, S, 6) with columns x, y, theta, vx, vy, w;
-    with ``contacts=True`` also the per-tip normal and tangential forces (n, S, P), N."""
+    """
+    Recorded states of S scenarios: t (n,), q (n, S, 6) with columns x, y, theta, vx, vy, w.
+
+    With ``contacts=True`` also the per-tip normal and tangential forces (n, S, P), N.
+    """
 
     t: np.ndarray
     q: np.ndarray
@@ -101,9 +105,13 @@ class Simulator:
         tips = self.table.count
 
         def per_scenario(get):
-            """A scalar where every scenario agrees (sweeps vary one or two parameters: scalar
-            operands are the cheapest), else one value per scenario broadcast to (S, P) once (a
-            same-shape operand is 2-3x faster than an (S, 1) column broadcast at every step)."""
+            """
+            A scalar where every scenario agrees.
+
+            (sweeps vary one or two parameters: scalar operands are the cheapest), else one value
+            per scenario broadcast to (S, P) once (a same-shape operand is 2-3x faster than an (S,
+            1) column broadcast at every step).
+            """
             values = np.array([get(s) for s in scenarios], dtype=float)
             if np.all(values == values[0]):
                 return float(values[0])
@@ -210,7 +218,8 @@ class Simulator:
     def run(self, duration: float, record_every: int = 1,
             progress: Optional[Callable[[int], None]] = None,
             contacts: bool = False) -> Trajectory:
-        """Step for ``duration`` seconds, recording the state every ``record_every`` steps.
+        """
+        Step for ``duration`` seconds, recording the state every ``record_every`` steps.
 
         ``progress(n)`` is called with the number of steps done since the last call.
         """
@@ -240,9 +249,13 @@ class Simulator:
 
 
 def fork_map(function, jobs: Sequence, workers: int) -> Iterator:
-    """``function(job)`` for every job, results in order: in this process when ``workers`` is
-    1, else in a pool of that many forked processes (the children inherit the imported modules
-    and tables, so nothing is rebuilt or pickled but the jobs and results)."""
+    """
+    ``function(job)`` for every job, results in order.
+
+    In this process when ``workers`` is 1, else in a pool of that many forked processes (the
+    children inherit the imported modules and tables, so nothing is rebuilt or pickled but the jobs
+    and results).
+    """
     if workers <= 1:
         for job in jobs:
             yield function(job)
@@ -260,7 +273,8 @@ def _run_chunk(job):
 def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[float] = None,
              record_every: int = 1, progress=None, contacts: bool = False,
              workers: int = 1) -> Trajectory:
-    """Run scenario(s) from the initial state for ``duration`` (default: integration.duration).
+    """
+    Run scenario(s) from the initial state for ``duration`` (default: integration.duration).
 
     ``workers`` > 1 splits a batch over that many processes (the scenarios are independent, so
     the numbers are the same as in one process); ``progress`` is then called per finished part.

@@ -1,4 +1,5 @@
-"""Kinematics of the helix-driven wave (paper Section 4.1 and Appendix A.1).
+"""
+Kinematics of the helix-driven wave (paper Section 4.1 and Appendix A.1).
 
 Body frame: origin at the robot's centre of mass, x forward (towards the head), y normal to the
 surfaces. The backbone is the wave the helix imposes on the links:
@@ -26,7 +27,8 @@ from saw_ros.core.params import ParameterError, RobotParams
 
 @dataclass(frozen=True)
 class LinkGeometry:
-    """Link positions in the body frame for an array of phases (leading axes = phase shape).
+    """
+    Link positions in the body frame for an array of phases (leading axes = phase shape).
 
     Arrays of points are complex numbers x + i y (one multiply rotates them).
     """
@@ -41,8 +43,12 @@ class LinkGeometry:
 
 
 def hinge_x(robot: RobotParams) -> float:
-    """The wave occupies the rear of the body; the COM sits at the middle of the robot's length
-    (a uniform bar, as the default pitch inertia assumes)."""
+    """
+    The wave occupies the rear of the body.
+
+    The COM sits at the middle of the robot's length (a uniform bar, as the default pitch inertia
+    assumes).
+    """
     tail = -robot.length / 2.0
     return tail + robot.wave_length_along_body
 
@@ -72,7 +78,8 @@ def base_link_angle(robot: RobotParams, phase) -> np.ndarray:
 
 
 def link_geometry(robot: RobotParams, phase) -> LinkGeometry:
-    """Positions of every link for the given phase(s).
+    """
+    Positions of every link for the given phase(s).
 
     The helix runs through the centre of every wave link and the links ride in the body's frame
     so that they "cancel out the rotational motion, and instead maintain vertical oscillation"
@@ -110,7 +117,8 @@ def base_link_end(robot: RobotParams, base_angle):
 
 
 def interference(robot: RobotParams, samples: int = 720) -> float:
-    """Smallest clearance (m) between neighbouring links over a wave cycle; negative = overlap.
+    """
+    Smallest clearance (m) between neighbouring links over a wave cycle; negative = overlap.
 
     Consecutive links turn about their shared joint; on the concave side their tips close in.
     A link is drawn as its spine (down tip to up tip): two links interfere when the spines of
@@ -147,8 +155,10 @@ def cycle_phases(samples: int) -> np.ndarray:
 
 
 class PhaseTable:
-    """Values tabulated over one wave cycle, linearly interpolated: the one table of the
-    simulator (tips), the joint states and the renderer (link geometry).
+    """
+    Values tabulated over one wave cycle, linearly interpolated.
+
+    The one table of the simulator (tips), the joint states and the renderer (link geometry).
 
     ``values`` are rows at ``cycle_phases(samples)``: row ``samples`` (phase 2 pi) equals row 0.
     The slopes get one row past the end (= the first), so a phase that rounds to
@@ -170,8 +180,11 @@ class PhaseTable:
 
     def at(self, phase, out: Optional[np.ndarray] = None,
            work: Optional[np.ndarray] = None) -> np.ndarray:
-        """Values at phase(s) in [0, 2 pi): shape phase.shape + (K,). ``out`` and ``work``
-        (both of that shape) avoid allocations in the simulator's loop."""
+        """
+        Values at phase(s) in [0, 2 pi): shape phase.shape + (K,).
+
+        ``out`` and ``work`` (both of that shape) avoid allocations in the simulator's loop.
+        """
         i, w = self.index(phase)
         w = w[..., None]
         if out is None:
@@ -183,7 +196,8 @@ class PhaseTable:
 
 
 class TipTable(PhaseTable):
-    """Body-frame tip positions over one wave cycle (complex x + i y).
+    """
+    Body-frame tip positions over one wave cycle (complex x + i y).
 
     Column order: the n down tips (bottom surface), then the n up tips (top surface).
     2048 samples put the interpolation error near 1e-8 m, far below any penetration that matters.
@@ -202,7 +216,8 @@ class TipTable(PhaseTable):
 
 
 class JointTable(PhaseTable):
-    """Base-link and wave-link angles over one wave cycle (rad, relative to the body x axis).
+    """
+    Base-link and wave-link angles over one wave cycle (rad, relative to the body x axis).
 
     ``link_geometry`` solves the base link's angle by Newton iterations: too slow for every step
     at 1 kHz. 4096 samples keep the interpolation error under 1e-5 rad.
@@ -214,7 +229,10 @@ class JointTable(PhaseTable):
         self.derivative = self.slopes * self.scale      # d angle / d phase, per sample
 
     def angles_and_rates(self, phase: float, omega: float = 0.0):
-        """([base_angle, link_00, ...], their rates in rad/s) at ``phase`` (wrapped into
-        [0, 2 pi)) for helix speed ``omega`` (rad/s)."""
+        """
+        ([base_angle, link_00, ...], their rates in rad/s) at ``phase``.
+
+        (wrapped into [0, 2 pi)) for helix speed ``omega`` (rad/s).
+        """
         i, w = self.index(phase % (2.0 * np.pi))
         return self.points[i] + w * self.slopes[i], self.derivative[i] * omega

@@ -1,4 +1,5 @@
-"""Outputs of a run (paper Section 5): v_theory, mean velocity, AR, CCI and steady state.
+"""
+Outputs of a run (paper Section 5): v_theory, mean velocity, AR, CCI and steady state.
 
 Pure functions of sampled signals, so that the simulator's 1 kHz ground truth and the tracker's
 60 fps estimates go through the same code.
@@ -23,8 +24,11 @@ STEADY_CCI = 0.02   # the paper's first convergence threshold (2 %)
 
 
 def cci(t, v, frequency: float, scale: Optional[float] = None):
-    """(times, CCI) for every sample with a full cycle after it; ``scale`` defaults to |mean v|
-    over the last two cycles (the steady part of a run that converged).
+    """
+    (times, CCI) for every sample with a full cycle after it.
+
+    ``scale`` defaults to |mean v| over the last two cycles (the steady part of a run that
+    converged).
 
     v(t + T) is interpolated in time, so samples may be irregular or missing (a subscriber that
     lost messages, a tracker that lost a frame).
@@ -50,8 +54,11 @@ def rms_scale(v, t, frequency: float) -> float:
 
 
 def velocity_cci(t, q, frequency: float):
-    """(times, {'vx', 'vy', 'w': CCI}) of the velocities of q (n, 6) = x, y, theta, vx, vy, w:
-    vx scaled by its steady mean, vy and w by their steady RMS (module docstring)."""
+    """
+    (times, {'vx', 'vy', 'w': CCI}) of the velocities of q (n, 6) = x, y, theta, vx, vy, w.
+
+    Vx scaled by its steady mean, vy and w by their steady RMS (module docstring).
+    """
     indices = {}
     for name, col in (('vx', 3), ('vy', 4), ('w', 5)):
         scale = None if col == 3 else rms_scale(q[:, col], t, frequency)
@@ -75,8 +82,12 @@ def settling_time(t, index, threshold: float) -> Optional[float]:
 
 def steady_state_start(t, v, frequency: float, threshold: float = STEADY_CCI,
                        min_cycles: float = 1.0) -> Optional[float]:
-    """Start of steady state: CCI of the forward velocity stays under ``threshold`` from there on,
-    with at least ``min_cycles`` cycles of evidence after it. None while not steady."""
+    """
+    Start of steady state.
+
+    CCI of the forward velocity stays under ``threshold`` from there on, with at least
+    ``min_cycles`` cycles of evidence after it. None while not steady.
+    """
     tc, index = cci(t, v, frequency)
     start = settling_time(tc, index, threshold)
     if start is None or len(tc) == 0 or tc[-1] - start < min_cycles / frequency - 1e-9:
@@ -113,7 +124,8 @@ class RunMetrics:
 
 
 def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0) -> RunMetrics:
-    """Metrics of one recorded run: t (n,), q (n, 6) = x, y, theta, vx, vy, w.
+    """
+    Metrics of one recorded run: t (n,), q (n, 6) = x, y, theta, vx, vy, w.
 
     The mean velocity is taken from the steady-state start (or from the middle of the run if it
     never settled, flagged by steady_from = None) to the end over whole cycles.

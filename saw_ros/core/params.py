@@ -1,4 +1,5 @@
-"""Typed, validated parameters of the model: the one source of truth.
+"""
+Typed, validated parameters of the model: the one source of truth.
 
 Every field carries its unit, its allowed range and a description in its dataclass metadata, so
 that the ROS nodes (parameter descriptors), the YAML files in ``msg_config/`` and the command
@@ -23,12 +24,14 @@ class ParameterError(ValueError):
 def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
          high: Optional[float] = None, low_open: bool = False, high_open: bool = False,
          **extra: Any):
-    """A dataclass field with its unit, range and description kept beside the default.
+    """
+    A dataclass field with its unit, range and description kept beside the default.
 
     ``extra`` goes into the metadata as well (e.g. ``flag``: a command-line flag other than
     ``--<name>``). Used by the Scenario's groups here and by the vision layer's dataclasses
     (``TrackerConfig``, ``CameraModel``, ``RenderOptions``), so that node parameters, the
-    ``msg_config/`` files and the command line all read one definition."""
+    ``msg_config/`` files and the command line all read one definition.
+    """
     return field(default=default, metadata=spec_meta(unit, description, low, high, low_open,
                                                      high_open, **extra))
 
@@ -36,16 +39,22 @@ def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
 def spec_meta(unit: str, description: str, low: Optional[float] = None,
               high: Optional[float] = None, low_open: bool = False, high_open: bool = False,
               **extra: Any) -> Dict[str, Any]:
-    """The metadata of a spec() field, for a parameter that is no dataclass field (a node's
-    own: its topics, its frame rate...)."""
+    """
+    The metadata of a spec() field, for a parameter that is no dataclass field.
+
+    (a node's own: its topics, its frame rate...).
+    """
     return {'unit': unit, 'description': description, 'low': low, 'high': high,
             'low_open': low_open, 'high_open': high_open, **extra}
 
 
 def spec_entries(cls, names: Optional[Iterable[str]] = None
                  ) -> Iterator[Tuple[str, Any, Dict[str, Any]]]:
-    """(name, default, metadata) of the spec() fields of dataclass ``cls`` (all of them, or
-    ``names`` in that order)."""
+    """
+    (name, default, metadata) of the spec() fields of dataclass ``cls``.
+
+    (all of them, or ``names`` in that order).
+    """
     fields = {f.name: f for f in dataclasses.fields(cls) if 'unit' in f.metadata}
     for name in (fields if names is None else names):
         f = fields[name]
@@ -209,7 +218,8 @@ class IntegrationParams(_Validated):
 
 @dataclass(frozen=True)
 class MotorParams(_Validated):
-    """Voltage to helix frequency: the paper does not give it; no-load linear by default.
+    """
+    Voltage to helix frequency: the paper does not give it; no-load linear by default.
 
     f = hz_per_volt * (V - dead_voltage) for V above the dead voltage. 0.24 Hz/V puts 6 V at
     1.44 Hz, i.e. about 10 cm/s over a rigid surface and 6.8 cm/s at AR 0.68 (paper Fig. 15).
@@ -250,16 +260,20 @@ class Scenario:
 
     @property
     def frequency(self) -> float:
-        """Helix frequency of this run, Hz: from motor.voltage when it is set, else
-        conditions.frequency."""
+        """
+        Helix frequency of this run, Hz.
+
+        From motor.voltage when it is set, else conditions.frequency.
+        """
         if self.motor.voltage > 0.0:
             return self.motor.frequency(self.motor.voltage)
         return self.conditions.frequency
 
     @property
     def frequency_source(self) -> str:
-        """Which parameter drives the helix: motor.voltage when above 0, else
-        conditions.frequency."""
+        """
+        Which parameter drives the helix: motor.voltage when above 0, else conditions.frequency.
+        """
         if self.motor.voltage > 0.0:
             return f'motor.voltage = {self.motor.voltage:g} V; conditions.frequency ignored'
         return 'conditions.frequency'
@@ -268,7 +282,7 @@ class Scenario:
     SECTIONS = ('robot', 'surface', 'conditions', 'integration', 'motor')
 
     def flat(self) -> Dict[str, Any]:
-        """{'surface.normal_stiffness': 15500.0, ...}"""
+        """{'surface.normal_stiffness': 15500.0, ...}."""
         return {name: value for name, value, _ in self.describe()}
 
     def describe(self) -> Iterator[Tuple[str, Any, Dict[str, Any]]]:

@@ -1,4 +1,5 @@
-"""Statics of crawling between two surfaces (paper Section 3, Eqs. 1-5, Figure 4).
+"""
+Statics of crawling between two surfaces (paper Section 3, Eqs. 1-5, Figure 4).
 
 With one friction coefficient mu at four idealised contacts (1, 2 bottom; 3, 4 top), progress up
 a slope alpha against a resisting force F_ext needs
@@ -32,7 +33,8 @@ FIGURE4_CASES = (StaticCase('A', 0.0, 0.4), StaticCase('B', 0.5, 0.4), StaticCas
 
 
 def minimal_normal_forces(slope, external_force, mu, weight=1.0):
-    """Minimal bottom, top and total normal forces (Eqs. 4, 5, 3) at slope(s) in rad.
+    """
+    Minimal bottom, top and total normal forces (Eqs. 4, 5, 3) at slope(s) in rad.
 
     The top force is the raw right side of (5): negative means the top surface is not needed
     (the bottom one alone is then pressed by the weight, bottom = m g cos(alpha) at the least).
@@ -47,7 +49,9 @@ def minimal_normal_forces(slope, external_force, mu, weight=1.0):
 
 
 def top_surface_needed_above(external_force, mu, weight=1.0):
-    """Smallest slope (rad) from which the top surface must press (Eq. 5 > 0); 0 if always;
+    """
+    Smallest slope (rad) from which the top surface must press (Eq. 5 > 0); 0 if always.
+
     None if never within [0, 90] deg.
 
     Solves F_ext/mu + m g (sin(a)/mu - cos(a)) = 0, i.e. sin(a) - mu cos(a) = -F_ext/m g.

@@ -1,4 +1,5 @@
-"""The four-cell worm robot the paper compares the wave with (Section 7, Figures 19-21).
+"""
+The four-cell worm robot the paper compares the wave with (Section 7, Figures 19-21).
 
 RECONSTRUCTION. The paper computes the worm with the analytic model of its reference [24]
 (Zarrouk, Sharf, Shoham: worm-robot locomotion on compliant surfaces), which is not at hand. What
@@ -86,9 +87,12 @@ class WormParams:
 
 
 def anchor_normal_force(worm: WormParams, scenario: Scenario) -> float:
-    """F_a: an expanded cell squeezed by (height - gap) / 2 into each surface (Hertz law, both
-    sides; its friction acts on both), plus its weight share on the bottom; at least the weight
-    share (a cell shorter than the gap still rests on the bottom surface)."""
+    """
+    F_a: an expanded cell squeezed by (height - gap) / 2 into each surface.
+
+    (Hertz law, both sides; its friction acts on both), plus its weight share on the bottom; at
+    least the weight share (a cell shorter than the gap still rests on the bottom surface).
+    """
     if worm.anchor_normal_force is not None:
         return worm.anchor_normal_force
     s = scenario.surface
@@ -131,9 +135,11 @@ def zero_advance_stiffness(scenario: Scenario, worm: WormParams = WormParams()) 
 
 
 def _equilibrium(b, k, cap, demand):
-    """Body position X (per row) where sum_j clip(-k (X - b_j), -cap_j, cap_j) = demand.
+    """
+    Body position X (per row) where sum_j clip(-k (X - b_j), -cap_j, cap_j) = demand.
 
-    b, cap: (S, N). Returns (X, ok): ok False where the caps cannot carry the demand."""
+    b, cap: (S, N). Returns (X, ok): ok False where the caps cannot carry the demand.
+    """
     total = cap.sum(axis=1)
     ok = total >= demand
     # The sum falls from +total to -total between min(b - cap/k) and max(b + cap/k).
@@ -149,9 +155,12 @@ def _equilibrium(b, k, cap, demand):
 
 def contact_law(scenarios, worm: WormParams = WormParams(), cycles: int = 3,
                 increments: int = 10) -> list:
-    """The worm's cells meeting the wave's contact law quasi-statically (module docstring,
-    model 2), for a list of scenarios at once. AR from the last cycle: 3 cycles of 10 increments
-    per step agree with 8 cycles of 200 to 5e-4 in AR."""
+    """
+    The worm's cells meeting the wave's contact law quasi-statically.
+
+    (module docstring, model 2), for a list of scenarios at once. AR from the last cycle: 3 cycles
+    of 10 increments per step agree with 8 cycles of 200 to 5e-4 in AR.
+    """
     scenarios = [scenarios] if isinstance(scenarios, Scenario) else list(scenarios)
     S, n, s = len(scenarios), worm.cells, worm.stroke
     surf = [sc.surface for sc in scenarios]

@@ -1,4 +1,5 @@
-"""The whole ROS graph as separate processes: simulator, camera, vision, comparison, recorder.
+"""
+The whole ROS graph as separate processes: simulator, camera, vision, comparison, recorder.
 
 Used by the main job (``saw-ros demo``), the full-graph integration test and the pipeline
 benchmark. No rclpy import here: each node is its own process (``saw_ros.graph.process``), in a private
@@ -61,7 +62,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                  camera: Optional[Dict[str, object]] = None,
                  reference_file: Optional[Path] = None, timeout: Optional[float] = None,
                  progress=None, record_topics: Optional[List[str]] = None) -> PipelineRun:
-    """Run the graph once; always stops every process it started (also on Ctrl-C).
+    """
+    Run the graph once; always stops every process it started (also on Ctrl-C).
 
     ``record_topics``: what the recorder records (default ``RECORDED_TOPICS``).
     """

@@ -1,4 +1,5 @@
-"""Starting and stopping ROS 2 processes without launch: isolated DDS, clean shutdown.
+"""
+Starting and stopping ROS 2 processes without launch: isolated DDS, clean shutdown.
 
 Used by the main job (``saw-ros demo``), the benchmarks and the integration tests. No rclpy import.
 
@@ -29,11 +30,13 @@ _held: 'collections.OrderedDict[int, object]' = collections.OrderedDict()
 
 
 def reserve_domain() -> int:
-    """A DDS domain id that no other run of ours on this machine holds.
+    """
+    A DDS domain id that no other run of ours on this machine holds.
 
     A random id alone collides between concurrent runs (tests, benchmarks, the main job): the
     other run's nodes then appear in ours. Each id has a lock file; this process holds the lock of
-    the ids it hands out (the OS releases them when it exits), keeping its HELD_DOMAINS newest."""
+    the ids it hands out (the OS releases them when it exits), keeping its HELD_DOMAINS newest.
+    """
     DOMAIN_LOCKS.mkdir(exist_ok=True)
     ids = list(DOMAIN_IDS)
     random.shuffle(ids)
@@ -54,7 +57,8 @@ def reserve_domain() -> int:
 
 
 def isolated_ros_env(domain_id: Optional[int] = None, base: Optional[Dict[str, str]] = None):
-    """Environment for a private DDS domain on this host only.
+    """
+    Environment for a private DDS domain on this host only.
 
     ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST replaces the deprecated ROS_LOCALHOST_ONLY; the
     domain is ``reserve_domain()``'s unless given.
@@ -76,8 +80,12 @@ def isolated_ros_env(domain_id: Optional[int] = None, base: Optional[Dict[str, s
 
 def wait_for(condition: Callable[[], bool], timeout: float, poll: float = 0.02,
              spin: Optional[Callable[[float], None]] = None) -> bool:
-    """Wait until ``condition()`` holds or ``timeout`` seconds pass; ``spin(t)`` replaces sleeping
-    (an executor's spin_once) so that callbacks run while waiting. Returns the condition."""
+    """
+    Wait until ``condition()`` holds or ``timeout`` seconds pass.
+
+    ``spin(t)`` replaces sleeping (an executor's spin_once) so that callbacks run while waiting.
+    Returns the condition.
+    """
     deadline = time.monotonic() + timeout
     while True:
         if condition():
@@ -146,8 +154,11 @@ NODE_PACKAGE = 'saw_ros.ros.nodes'
 
 def node_command(executable: str, *ros_args: str, params: Optional[Dict[str, object]] = None,
                  params_file: Optional[Path] = None, package: str = NODE_PACKAGE) -> List[str]:
-    """argv to run one of our executables (a module of ``package``) with ROS arguments, by
-    module (no PATH lookup)."""
+    """
+    Argv to run one of our executables (a module of ``package``) with ROS arguments, by module.
+
+    (no PATH lookup).
+    """
     argv = [sys.executable, '-m', f'{package}.{executable}']
     extra = list(ros_args)
     if params_file is not None:

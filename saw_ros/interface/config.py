@@ -1,4 +1,5 @@
-"""YAML parameter files (``msg_config/``) <-> the core's Scenario: one source of truth.
+"""
+YAML parameter files (``msg_config/``) <-> the core's Scenario: one source of truth.
 
 A file is a ROS 2 parameters file (``<node>: {ros__parameters: {...}}``); inside, parameters are
 written either flat with dots (``surface.normal_stiffness: 15500.0``) or nested
@@ -18,9 +19,13 @@ CONFIG_DIR = Path(__file__).resolve().parents[2] / 'msg_config'
 
 
 def config_path(name: str) -> Path:
-    """A file of msg_config/: from the source tree (a checkout, an editable install), else from
-    the installed ``share/saw_ros/msg_config`` (pip or colcon install, found from this package's
-    own location, then the ament index; no sourced environment needed)."""
+    """
+    A file of msg_config/.
+
+    From the source tree (a checkout, an editable install), else from the installed
+    ``share/saw_ros/msg_config`` (pip or colcon install, found from this package's own location,
+    then the ament index; no sourced environment needed).
+    """
     local = CONFIG_DIR / name
     if local.exists():
         return local
@@ -60,8 +65,12 @@ def load_parameters(path: Path, node: Optional[str] = None) -> Dict[str, Any]:
 
 
 def scenario_from_parameters(values: Dict[str, Any], base: Optional[Scenario] = None) -> Scenario:
-    """Scenario from a flat dict; names that are not model parameters are ignored here (node
-    options such as real_time_factor live beside them in the same file)."""
+    """
+    Scenario from a flat dict.
+
+    Names that are not model parameters are ignored here (node options such as real_time_factor
+    live beside them in the same file).
+    """
     base = base or Scenario()
     known = set(base.flat())
     return base.with_values({k: v for k, v in values.items() if k in known})

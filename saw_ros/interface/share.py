@@ -1,4 +1,5 @@
-"""Where an installed ROS package keeps its ``share/<pkg>`` files, without a sourced environment.
+"""
+Where an installed ROS package keeps its ``share/<pkg>`` files, without a sourced environment.
 
 Every install of a ROS package is an install prefix laid out alike: the pip venv of
 ``scripts/bootstrap.sh`` (``.venv/lib/python3.11/site-packages/<pkg>``, ``.venv/share/<pkg>``),
@@ -49,10 +50,12 @@ def python_locations(package: str) -> List[str]:
 
 
 def prefix_above(path: str, package: str) -> Optional[str]:
-    """The nearest folder above ``path`` that is an install prefix of ``package``.
+    """
+    The nearest folder above ``path`` that is an install prefix of ``package``.
 
     Symbolic links are not resolved: a colcon --symlink-install prefix links its files into the
-    build folder, and the prefix is where the link is, not where it points."""
+    build folder, and the prefix is where the link is, not where it points.
+    """
     folder = os.path.dirname(os.path.abspath(path))
     while True:
         if _is_prefix_of(folder, package):
@@ -71,8 +74,12 @@ def ament_prefixes(package: str) -> List[str]:
 
 
 def share_directories(package: str) -> List[str]:
-    """Candidate ``share/<package>`` folders, best first: beside the imported Python package,
-    then from the ament index. Not cached: the environment may change between calls."""
+    """
+    Candidate ``share/<package>`` folders, best first.
+
+    Beside the imported Python package, then from the ament index. Not cached: the environment may
+    change between calls.
+    """
     found: List[str] = []
     for location in python_locations(package):
         prefix = prefix_above(location, package)

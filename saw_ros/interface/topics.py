@@ -1,4 +1,5 @@
-"""The topic table: every topic our nodes publish, in one place (pure: no rclpy).
+"""
+The topic table: every topic our nodes publish, in one place (pure: no rclpy).
 
 Each entry names the topic, its message type ('geometry_msgs/msg/PoseStamped'), its QoS profile
 by name (``saw_ros.ros.qos.profile`` / ``publisher_profile`` turn it into an rclpy QoSProfile;

@@ -1,4 +1,5 @@
-"""Reading the few fields we need straight from CDR bytes (raw subscriptions), without rclpy.
+"""
+Reading the few fields we need straight from CDR bytes (raw subscriptions), without rclpy.
 
 Deserialising a full message costs most of a Python subscriber's time at 1 kHz; a raw
 subscription plus struct.unpack_from costs a fraction of it (shared/docs/ros-notes.md).
@@ -51,7 +52,8 @@ def pose_stamped_ns(data: bytes):
 
 
 class JointPosition:
-    """Reads one joint's position (by name) from sensor_msgs/JointState CDR bytes.
+    """
+    Reads one joint's position (by name) from sensor_msgs/JointState CDR bytes.
 
     ``reader(data)`` -> (stamp in ns, position), position None when the joint is not in the
     message (or has no position). The offsets are worked out once per layout of header and names
@@ -98,8 +100,11 @@ class JointPosition:
 
 
 class ImageView:
-    """The fields of a sensor_msgs/Image read from its CDR bytes; ``data`` is a zero-copy
-    memoryview of the pixel bytes (valid as long as the message buffer is)."""
+    """
+    The fields of a sensor_msgs/Image read from its CDR bytes.
+
+    ``data`` is a zero-copy memoryview of the pixel bytes (valid as long as the message buffer is).
+    """
 
     __slots__ = ('stamp_ns', 'frame_id', 'height', 'width', 'encoding', 'is_bigendian', 'step',
                  'data')
@@ -129,8 +134,11 @@ ENCAPSULATION = b'\x00\x01\x00\x00'   # CDR, little endian
 
 
 class CdrWriter:
-    """Minimal XCDR1 little-endian writer for the constant parts of encoded messages: alignment
-    is relative to the end of the 4-byte encapsulation header."""
+    """
+    Minimal XCDR1 little-endian writer for the constant parts of encoded messages.
+
+    Alignment is relative to the end of the 4-byte encapsulation header.
+    """
 
     def __init__(self, offset: int = 0):
         self.buf = bytearray()
@@ -160,8 +168,12 @@ class CdrWriter:
 
 
 class ImageCdr:
-    """Encodes sensor_msgs/Image (little-endian XCDR1) around a frame's pixel bytes, with one
-    copy of the pixels: ``encoder(pixels, stamp_ns)`` -> bytes ready for ``publish``."""
+    """
+    Encodes sensor_msgs/Image.
+
+    (little-endian XCDR1) around a frame's pixel bytes, with one copy of the pixels:
+    ``encoder(pixels, stamp_ns)`` -> bytes ready for ``publish``.
+    """
 
     def __init__(self, width: int, height: int, encoding: str, step: int, frame_id: str):
         w = CdrWriter(8).string(frame_id)               # after the stamp (8 bytes)

@@ -1,4 +1,5 @@
-"""numpy state of the simulator -> standard ROS 2 messages (and back, for readers and tests).
+"""
+Numpy state of the simulator -> standard ROS 2 messages (and back, for readers and tests).
 
 Pure functions, no node: every function takes arrays/floats and returns a message. The builders
 accept ``out=`` (a message to fill in place) because the simulator publishes six messages per
@@ -91,7 +92,8 @@ def twist_msg(vx: float, vy: float, w: float, nanoseconds: int,
 
 def contact_points(tips: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
                    touching: np.ndarray, slipping: np.ndarray) -> np.ndarray:
-    """Structured (CONTACT_DTYPE) array of the tips in contact.
+    """
+    Structured (CONTACT_DTYPE) array of the tips in contact.
 
     Arrays are one scenario's (P,) columns in the Simulator's order: the n down tips (bottom
     surface, link 0 = frontmost) then the n up tips (top surface). ``tips`` is complex x + i y in
@@ -123,8 +125,11 @@ def points_of(msg: PointCloud2) -> np.ndarray:
 
 
 def body_axes(fx: float, fy: float, theta: float):
-    """A surface-frame force (fx, fy) in ``base_link`` axes: turned by -theta (a moment about z
-    does not change when the axes turn about z)."""
+    """
+    A surface-frame force (fx, fy) in ``base_link`` axes.
+
+    Turned by -theta (a moment about z does not change when the axes turn about z).
+    """
     c, s = math.cos(theta), math.sin(theta)
     return c * fx + s * fy, -s * fx + c * fy
 
@@ -177,8 +182,11 @@ def wrench_cdr(fx: float, fy: float, mz: float, nanoseconds: int) -> bytes:
 
 
 class ContactsCdr:
-    """PointCloud2 of CONTACT_DTYPE points as CDR: header, height 1, width, the constant field
-    list and point step, row_step, data, is_dense."""
+    """
+    PointCloud2 of CONTACT_DTYPE points as CDR.
+
+    Header, height 1, width, the constant field list and point step, row_step, data, is_dense.
+    """
 
     def __init__(self):
         w = CdrWriter(8).string(SURFACE_FRAME)
@@ -203,8 +211,9 @@ class ContactsCdr:
 
 
 class JointStateCdr:
-    """JointState with fixed names as CDR: position and velocity float64[len(names)], effort
-    empty."""
+    """
+    JointState with fixed names as CDR: position and velocity float64[len(names)], effort empty.
+    """
 
     def __init__(self, names: Sequence[str]):
         self.count = len(names)

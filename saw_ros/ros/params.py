@@ -1,4 +1,5 @@
-"""The model's parameters (``core.params.Scenario``) as ROS 2 parameters, for any saw_ros node.
+"""
+The model's parameters (``core.params.Scenario``) as ROS 2 parameters, for any saw_ros node.
 
 Every ``Scenario.describe()`` entry becomes a parameter with the same dotted name
 (``surface.normal_stiffness``), its unit and description in the ParameterDescriptor and a
@@ -29,9 +30,13 @@ _TYPES = ((bool, ParameterType.PARAMETER_BOOL), (int, ParameterType.PARAMETER_IN
 
 
 def descriptor(name: str, value, meta: Dict, read_only: bool = False) -> ParameterDescriptor:
-    """ParameterDescriptor for one spec() entry (a Scenario's, a vision dataclass's or a node's
-    own): description [unit], range, constraints. ``ros_range=False`` in the metadata: no ROS
-    range, the node checks the bounds itself (with its own message)."""
+    """
+    ParameterDescriptor for one spec() entry.
+
+    (a Scenario's, a vision dataclass's or a node's own): description [unit], range, constraints.
+    ``ros_range=False`` in the metadata: no ROS range, the node checks the bounds itself (with its
+    own message).
+    """
     unit = meta.get('unit') or ''
     kind = next(t for cls, t in _TYPES if isinstance(value, cls))
     is_int = kind == ParameterType.PARAMETER_INTEGER
@@ -53,8 +58,11 @@ def descriptor(name: str, value, meta: Dict, read_only: bool = False) -> Paramet
 
 
 def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> None:
-    """``-p conditions.slope:=0`` or ``slope: 0`` in YAML arrive as INTEGER overrides, which rclpy
-    refuses for a DOUBLE parameter: turn them into doubles before declaring."""
+    """
+    ``-p conditions.slope:=0`` or ``slope: 0`` in YAML arrive as INTEGER overrides.
+
+    Which rclpy refuses for a DOUBLE parameter: turn them into doubles before declaring.
+    """
     overrides = getattr(node, '_parameter_overrides', None)
     if not isinstance(overrides, dict):
         return
@@ -67,11 +75,14 @@ def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> N
 
 def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: bool = True
                  ) -> Dict[str, object]:
-    """Declares spec() entries (name, default, metadata) on ``node`` with their descriptors
-    (read-only by default: read at start-up only; an entry's ``read_only`` metadata decides for
-    it) and returns {name: value}. An integer given for
-    a double (``-p fps:=30``) is taken as a double. Raises rclpy's ParameterException (an
-    out-of-range value: InvalidParameterValueException) for an invalid start-up value."""
+    """
+    Declares spec() entries (name, default, metadata) on ``node`` with their descriptors.
+
+    (read-only by default: read at start-up only; an entry's ``read_only`` metadata decides for it)
+    and returns {name: value}. An integer given for a double (``-p fps:=30``) is taken as a double.
+    Raises rclpy's ParameterException (an out-of-range value: InvalidParameterValueException) for
+    an invalid start-up value.
+    """
     entries = list(entries)
     defaults = {n: v for n, v, _ in entries}
     accept_integers_for_doubles(node, defaults, defaults)
@@ -87,7 +98,8 @@ SIMULATOR_EXCLUDED = ('integration.duration',)        # replaced by `duration` (
 
 
 class ScenarioParameters:
-    """Declares a Scenario's parameters on ``node`` and keeps ``self.scenario`` in step with them.
+    """
+    Declares a Scenario's parameters on ``node`` and keeps ``self.scenario`` in step with them.
 
     ``exclude``: Scenario names not declared (their default/base value is kept).
     ``frozen``: {name prefix: reason} refused at run time (after the declaration).
@@ -171,11 +183,14 @@ def _yaml_value(value) -> str:
 def yaml_text(node_name: str, header: str, own: Iterable[Tuple[str, object, object]] = (),
               scenario: Optional[Scenario] = None, exclude: Iterable[str] = (),
               with_scenario: bool = True) -> str:
-    """A parameters file for ``--ros-args --params-file``: ``own`` (name, value, comment or
-    spec() metadata) entries first, then (``with_scenario``) every Scenario parameter, nested by
-    section, each with its unit, range and description in a comment. One generator for every
-    msg_config/<node>.yaml: regenerate them with it (each node's ``--write-yaml``) when a
-    dataclass gains fields."""
+    """
+    A parameters file for ``--ros-args --params-file``.
+
+    ``own`` (name, value, comment or spec() metadata) entries first, then (``with_scenario``) every
+    Scenario parameter, nested by section, each with its unit, range and description in a comment.
+    One generator for every msg_config/<node>.yaml: regenerate them with it (each node's
+    ``--write-yaml``) when a dataclass gains fields.
+    """
     import textwrap
     scenario = scenario if scenario is not None else Scenario()
     exclude = set(exclude)

@@ -1,4 +1,5 @@
-"""QoS profiles of our topics, and the message classes behind the table's type names.
+"""
+QoS profiles of our topics, and the message classes behind the table's type names.
 
 ``saw_ros.interface.topics`` names each topic's profile ('stream', 'clock', 'image',
 'tracking', 'latched'); ``profile(name)`` is the QoSProfile a subscriber asks for (the
@@ -32,8 +33,11 @@ LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 
 
 def with_depth(qos: QoSProfile, depth: int) -> QoSProfile:
-    """``qos`` with another history depth: the same contract (depth does not take part in QoS
-    matching), a longer queue on this side."""
+    """
+    ``qos`` with another history depth.
+
+    The same contract (depth does not take part in QoS matching), a longer queue on this side.
+    """
     return QoSProfile(history=qos.history, depth=depth, reliability=qos.reliability,
                       durability=qos.durability)
 
@@ -54,10 +58,13 @@ TRACKING_DEPTH = 200
 
 
 def image_publisher_qos() -> QoSProfile:
-    """IMAGE_QOS offered transient-local with IMAGE_PUBLISHER_DEPTH of history: compatible
-    with every volatile reader, and a recorder (which asks for transient-local when all
+    """
+    IMAGE_QOS offered transient-local with IMAGE_PUBLISHER_DEPTH of history.
+
+    Compatible with every volatile reader, and a recorder (which asks for transient-local when all
     publishers offer it) that matches late still gets the last second of frames
-    (docs/measurements.md)."""
+    (docs/measurements.md).
+    """
     return QoSProfile(history=IMAGE_QOS.history, depth=IMAGE_PUBLISHER_DEPTH,
                       reliability=IMAGE_QOS.reliability,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)

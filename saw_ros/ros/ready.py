@@ -1,5 +1,8 @@
-"""Readiness from the graph itself: each node says on ``/saw/ready`` (saw_ros.interface.topics
-READY) when it is ready, and a probe waits for the nodes it is told.
+"""
+Readiness from the graph itself.
+
+Each node says on ``/saw/ready`` (saw_ros.interface.topics READY) when it is ready, and a probe
+waits for the nodes it is told.
 
 A node's status is a diagnostic_msgs/DiagnosticArray with one DiagnosticStatus: its node name,
 level OK, message 'ready' and the key ``ready`` = ``true``, published latched (transient local,
@@ -27,8 +30,11 @@ READY_KEY = 'ready'
 
 
 class Readiness:
-    """The node's publisher on READY (created with the node, so the probe discovers it early);
-    ``announce()`` publishes 'ready' once."""
+    """
+    The node's publisher on READY (created with the node, so the probe discovers it early).
+
+    ``announce()`` publishes 'ready' once.
+    """
 
     def __init__(self, node):
         self._node = node

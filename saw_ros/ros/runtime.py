@@ -1,4 +1,7 @@
-"""What every saw_ros node shares: the main() shape, signal handling (QoS profiles: ``saw_ros.ros.qos``).
+"""
+What every saw_ros node shares.
+
+The main() shape, signal handling (QoS profiles: ``saw_ros.ros.qos``).
 
 main() follows ros2/demos: init, build the node, spin, and on SIGINT/SIGTERM or an external
 shutdown destroy the node and exit 0 without a traceback. A node that must exit with an error
@@ -29,10 +32,14 @@ class NodeFailure(RuntimeError):
 
 
 def make_executor(context=None):
-    """rclpy's EventsExecutor (C++; Jazzy: rclpy.experimental) where available, else the
-    SingleThreadedExecutor. The events executor takes and dispatches a message for a fraction of
-    the SingleThreadedExecutor's per-message cost (it does not rebuild a wait set each time),
-    which is most of what a Python node at 1 kHz spends."""
+    """
+    rclpy's EventsExecutor.
+
+    (C++; Jazzy: rclpy.experimental) where available, else the SingleThreadedExecutor. The events
+    executor takes and dispatches a message for a fraction of the SingleThreadedExecutor's
+    per-message cost (it does not rebuild a wait set each time), which is most of what a Python
+    node at 1 kHz spends.
+    """
     try:
         from rclpy.experimental import EventsExecutor
         return EventsExecutor(context=context)
@@ -42,12 +49,14 @@ def make_executor(context=None):
 
 
 class _StopRequest:
-    """SIGINT/SIGTERM seen by ``run_node``'s handler (on the main thread, between bytecodes).
+    """
+    SIGINT/SIGTERM seen by ``run_node``'s handler (on the main thread, between bytecodes).
 
     ``interrupt``: also raise KeyboardInterrupt, as Python's own Ctrl-C does. Only while a node's
     own loop runs on the main thread outside any executor (the player's ``play()``, loadgen's
     ``run()``): there nothing is half-done in rclpy, and the context stays valid for ``close()``.
-    Never in an executor's callbacks, never while the node is built or closed."""
+    Never in an executor's callbacks, never while the node is built or closed.
+    """
     requested = False
     interrupt = False
 
@@ -63,11 +72,14 @@ def _on_stop_signal(signum, frame) -> None:
 
 
 def spin_node(node, until: Optional[Callable[[], bool]] = None, executor=None) -> None:
-    """Spin ``node`` on ``executor`` (default: ``make_executor()``) until a stop is requested
+    """
+    Spin ``node`` on ``executor`` (default: ``make_executor()``) until a stop is requested.
+
     (SIGINT, SIGTERM), its context is shut down or ``until()`` holds.
 
     Spins in 0.1 s slices: the stop request and ``until`` are checked at least that often, and
-    between callbacks only (the signal handler just sets the request)."""
+    between callbacks only (the signal handler just sets the request).
+    """
     if executor is None:
         executor = make_executor(node.context)
     executor.add_node(node)
@@ -89,8 +101,11 @@ def spin_events(node, until: Optional[Callable[[], bool]] = None) -> None:
 
 
 def _context_gone(exc: BaseException, node) -> bool:
-    """``exc`` is rcl refusing to work because the context was shut down (an external shutdown,
-    or another process' signal handling): a stop, not a failure."""
+    """
+    ``exc`` is rcl refusing to work because the context was shut down.
+
+    (an external shutdown, or another process' signal handling): a stop, not a failure.
+    """
     from rclpy.exceptions import InvalidHandle
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     if not isinstance(exc, (_rclpy.RCLError, InvalidHandle)):
@@ -102,14 +117,16 @@ def _context_gone(exc: BaseException, node) -> bool:
 
 def run_node(make_node: Callable[[], 'object'], args=None,
              spin: Optional[Callable[[object], None]] = None, events: bool = False) -> int:
-    """Build and spin a node until Ctrl-C, SIGTERM, shutdown or NodeFailure; return exit code.
+    """
+    Build and spin a node until Ctrl-C, SIGTERM, shutdown or NodeFailure; return exit code.
 
     ``spin(node)`` replaces the default spinning (a loop of its own or ``spin_node``); else
     ``spin_node`` on the EventsExecutor (``events``) or the SingleThreadedExecutor. Either way
     SIGINT and SIGTERM end spinning (module docstring), then ``node.close()`` runs (if the node
     has one: finish files, stop the node's threads), subscribers get up to FLUSH_TIMEOUT to
     acknowledge the last messages (``flush``), the node is destroyed and the context shut
-    down, in that order; exit code 0."""
+    down, in that order; exit code 0.
+    """
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
@@ -158,11 +175,15 @@ def run_node(make_node: Callable[[], 'object'], args=None,
 
 
 def flush(node, timeout: float = FLUSH_TIMEOUT) -> List[str]:
-    """Wait, ``timeout`` s at most in all, until every reliable subscriber has acknowledged what
-    ``node``'s publishers published; warn about and return the topics where one did not.
+    """
+    Wait, ``timeout`` s at most in all.
+
+    Until every reliable subscriber has acknowledged what ``node``'s publishers published; warn
+    about and return the topics where one did not.
 
     Exiting at once would drop what a lagging reliable subscriber has not received yet; the
-    bound keeps a stalled or vanished subscriber from holding the node (docs/measurements.md)."""
+    bound keeps a stalled or vanished subscriber from holding the node (docs/measurements.md).
+    """
     from rclpy.duration import Duration
     deadline = time.monotonic() + timeout
     late = []
@@ -178,9 +199,12 @@ def flush(node, timeout: float = FLUSH_TIMEOUT) -> List[str]:
 
 
 def _close(node) -> None:
-    """The node's ``close()`` (if any: it may still publish), ``flush()``, then
-    ``destroy_node()``; the context is still valid unless something else shut it down (then
-    what failed because of it is a stop, not an error)."""
+    """
+    The node's ``close()`` (if any: it may still publish), ``flush()``, then ``destroy_node()``.
+
+    The context is still valid unless something else shut it down (then what failed because of it
+    is a stop, not an error).
+    """
     try:
         close = getattr(node, 'close', None)
         if close is not None:

@@ -1,4 +1,5 @@
-"""Vision: a virtual side-view camera and the two-pink-marker tracker (numpy + OpenCV, no rclpy).
+"""
+Vision: a virtual side-view camera and the two-pink-marker tracker (numpy + OpenCV, no rclpy).
 
 ``camera`` (the camera model shared by both), ``render`` (frames of the simulated robot),
 ``tracker`` (marker detection, front/back assignment, position, pitch, speeds), ``video``

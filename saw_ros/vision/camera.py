@@ -1,4 +1,5 @@
-"""The camera model of the renderer and the tracker: a level pinhole camera beside the track.
+"""
+The camera model of the renderer and the tracker: a level pinhole camera beside the track.
 
 The camera looks square at the plane in which the robot moves (its side), from ``distance``
 metres. In that plane one metre is ``scale`` pixels (f = scale * distance is the focal length
@@ -114,8 +115,11 @@ class CameraModel:
         return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
 
     def distort(self, pixels):
-        """Ideal pixels (complex u + i v) -> where the lens puts them in the image (OpenCV's
-        distortion model). Identity without a distortion."""
+        """
+        Ideal pixels (complex u + i v) -> where the lens puts them in the image.
+
+        (OpenCV's distortion model). Identity without a distortion.
+        """
         p = np.asarray(pixels)
         if not self.distorted:
             return p
@@ -132,8 +136,12 @@ class CameraModel:
         return (K[0, 0] * xd + K[0, 2]) + 1j * (K[1, 1] * yd + K[1, 2])
 
     def undistort(self, pixels):
-        """Image pixels (complex) -> ideal pixels, the inverse of ``distort`` (OpenCV's iterative
-        undistortPoints, in the calibration's pixel grid). Identity without a distortion."""
+        """
+        Image pixels (complex) -> ideal pixels, the inverse of ``distort``.
+
+        (OpenCV's iterative undistortPoints, in the calibration's pixel grid). Identity without a
+        distortion.
+        """
         p = np.asarray(pixels)
         if not self.distorted:
             return p

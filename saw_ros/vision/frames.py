@@ -1,4 +1,5 @@
-"""Side-view renderer: what a level camera beside the track sees of the robot between its surfaces.
+"""
+Side-view renderer: what a level camera beside the track sees of the robot between its surfaces.
 
 Drawn, back to front: a textured wall (static), the two rigid boards, the two silicone layers with
 a dent wherever a link tip presses in (depth = the tip's penetration, width about a link), the
@@ -93,8 +94,11 @@ class RenderOptions:
 
 
 class _GeometryTable(PhaseTable):
-    """Body-frame link geometry over one wave cycle: centres, directions, base-link end, up and
-    down tips side by side in one complex table."""
+    """
+    Body-frame link geometry over one wave cycle.
+
+    Centres, directions, base-link end, up and down tips side by side in one complex table.
+    """
 
     def __init__(self, robot: RobotParams, samples: int = 1024):
         geo = link_geometry(robot, cycle_phases(samples))
@@ -233,15 +237,21 @@ class Renderer:
         return complex(p[0]), complex(p[1])
 
     def marker_pixels(self, pose: RobotPose):
-        """(front, back) marker centres in the image, pixels (complex u + i v); through the lens
-        distortion when the camera has one."""
+        """
+        (front, back) marker centres in the image, pixels (complex u + i v).
+
+        Through the lens distortion when the camera has one.
+        """
         p = self.camera.distort(np.array(self._ideal_pixels(pose)))
         return complex(p[0]), complex(p[1])
 
     def draw(self, pose: RobotPose, out: np.ndarray, hidden: Iterable[str] = (),
              t: float = 0.0) -> np.ndarray:
-        """Draw the scene at one instant (time t for moving clutter) into ``out``, ideal (no
-        lens), no blur, brightness or noise."""
+        """
+        Draw the scene at one instant (time t for moving clutter) into ``out``, ideal.
+
+        (no lens), no blur, brightness or noise.
+        """
         np.copyto(out, self._background)
         clutter = self.scene.clutter
         if clutter:
@@ -281,9 +291,12 @@ class Renderer:
     def render(self, pose: RobotPose, hidden: Iterable[str] = (),
                pose_at: Optional[Callable[[float], RobotPose]] = None,
                t: Optional[float] = None) -> np.ndarray:
-        """One finished frame (a new array). With motion blur (options.exposure > 0) give
-        ``pose_at(time)`` and the frame time ``t``: sub-frames are drawn over
-        [t - exposure / 2, t + exposure / 2]."""
+        """
+        One finished frame (a new array).
+
+        With motion blur (options.exposure > 0) give ``pose_at(time)`` and the frame time ``t``:
+        sub-frames are drawn over [t - exposure / 2, t + exposure / 2].
+        """
         opt, scene = self.options, self.scene
         cam = self.camera
         t_frame = 0.0 if t is None else t
@@ -326,8 +339,12 @@ class Renderer:
 
 
 class StampedSeries:
-    """Time-stamped samples arriving in order (stamps increasing: ns in the camera node),
-    linearly interpolated; keeps the last ``keep_ns`` (at least 4096 samples; None: all)."""
+    """
+    Time-stamped samples arriving in order.
+
+    (stamps increasing: ns in the camera node), linearly interpolated; keeps the last ``keep_ns``
+    (at least 4096 samples; None: all).
+    """
 
     def __init__(self, keep_ns: Optional[int] = None):
         self.keep_ns = None if keep_ns is None else int(keep_ns)
@@ -390,8 +407,11 @@ def pose_between(poses: StampedSeries, phases: StampedSeries, t_ns: float) -> Ro
 
 def pose_interpolator(t: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarray,
                       phase: np.ndarray) -> Callable[[float], RobotPose]:
-    """pose_at(time) of a recorded run: the camera node's interpolation (``pose_between``)
-    over the whole record."""
+    """
+    pose_at(time) of a recorded run.
+
+    The camera node's interpolation (``pose_between``) over the whole record.
+    """
     poses = StampedSeries.of(t, x, y, theta)
     phases = StampedSeries.of(t, phase)
     return lambda time: pose_between(poses, phases, time)

@@ -1,4 +1,5 @@
-"""Footage that does not look like the renderer's: clutter, lighting, lens and codec.
+"""
+Footage that does not look like the renderer's: clutter, lighting, lens and codec.
 
 ``SceneOptions`` adds to a rendered run what real footage has and the tracker must survive:
 - ``clutter``: coloured things in view (``Clutter``: disc or box, RGB colour, surface-frame
@@ -119,8 +120,11 @@ def gradient_map(camera: CameraModel, scene: SceneOptions) -> np.ndarray:
 
 
 def distortion_maps(camera: CameraModel):
-    """cv2.remap maps that warp the ideal image into the distorted one: for every image pixel,
-    the ideal pixel the lens brought there."""
+    """
+    cv2.remap maps that warp the ideal image into the distorted one.
+
+    For every image pixel, the ideal pixel the lens brought there.
+    """
     u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64),
                        np.arange(camera.height, dtype=np.float64))
     ideal = camera.undistort(u + 1j * v)
@@ -136,8 +140,11 @@ def jpeg(frame: np.ndarray, quality: int) -> np.ndarray:
 
 def draw_clutter(img: np.ndarray, camera: CameraModel, things: Iterable[Clutter], t: float,
                  layer: str, disc) -> None:
-    """Draw the things of one layer into an ideal (undistorted) frame; ``disc(img, centre_px,
-    radius_px, bgr)`` draws an anti-aliased disc."""
+    """
+    Draw the things of one layer into an ideal (undistorted) frame.
+
+    ``disc(img, centre_px, radius_px, bgr)`` draws an anti-aliased disc.
+    """
     for c in things:
         if c.layer != layer:
             continue

@@ -1,4 +1,5 @@
-"""Rendered runs with known answers: the simulation, its frames and the ground truth.
+"""
+Rendered runs with known answers: the simulation, its frames and the ground truth.
 
 Used by the tests and the benchmark to hold the tracker against the simulator. (The tracker
 itself never imports this module or the core.) ``cluttered_scene`` and ``hard_footage`` make the
@@ -57,8 +58,12 @@ def simulate_run(scenario: Scenario, duration: float) -> Run:
 def frames(run: Run, renderer: Renderer, times: Iterable[float],
            hidden: Callable[[int], Tuple[str, ...]] = lambda k: ()) \
         -> Iterator[Tuple[int, float, RobotPose, np.ndarray]]:
-    """(index, time, true pose, frame) of each frame time. With the scene's compression 'mp4'
-    the whole run goes through an .mp4 file (codec mp4v) and back first."""
+    """
+    (index, time, true pose, frame) of each frame time.
+
+    With the scene's compression 'mp4' the whole run goes through an .mp4 file (codec mp4v) and
+    back first.
+    """
     times = list(times)
     if renderer.scene.compression != 'mp4':
         for k, t in enumerate(times):
@@ -80,15 +85,18 @@ def frames(run: Run, renderer: Renderer, times: Iterable[float],
 
 def cluttered_scene(run: Run, camera: CameraModel = CameraModel(), compression: str = 'jpeg',
                     quality: int = 70, cross_at: float = 3.0) -> SceneOptions:
-    """The hard case for a run of the default scenario (robot from x = 0 towards +x at about
-    5 cm/s) seen by ``camera``: red, orange-red and orange objects in the corners (the orange one
-    moving, in front of everything), two magenta discs of a marker's size (one on the wall above
-    the track, one drifting against the robot on the top board, 42 px above the marker line), and
-    three more hot-pink markers: one behind the robot on its line, one ahead of it on its line
-    (out of the robot's reach in 6.5 s) and one moving up through the picture in front of the
-    robot that crosses the marker line 25 px behind the back marker at ``cross_at`` s (inside
-    the back marker's gate for about 35 frames). Lighting gradient +-35 % and 10 % flicker at
-    100 Hz; compression as given."""
+    """
+    The hard case for a run of the default scenario.
+
+    (robot from x = 0 towards +x at about 5 cm/s) seen by ``camera``: red, orange-red and orange
+    objects in the corners (the orange one moving, in front of everything), two magenta discs of a
+    marker's size (one on the wall above the track, one drifting against the robot on the top
+    board, 42 px above the marker line), and three more hot-pink markers: one behind the robot on
+    its line, one ahead of it on its line (out of the robot's reach in 6.5 s) and one moving up
+    through the picture in front of the robot that crosses the marker line 25 px behind the back
+    marker at ``cross_at`` s (inside the back marker's gate for about 35 frames). Lighting gradient
+    +-35 % and 10 % flicker at 100 Hz; compression as given.
+    """
     x0, x1 = camera.visible_x_range(0.0)
     gap = run.scenario.conditions.gap
     mid = gap / 2.0
@@ -114,9 +122,12 @@ def cluttered_scene(run: Run, camera: CameraModel = CameraModel(), compression: 
 
 
 def hard_footage(run: Run, compression: str = 'jpeg', quality: int = 70, cross_at: float = 3.0):
-    """(camera, render options, scene) of the hard case: ``cluttered_scene``, sensor noise 6,
-    motion blur over 1/60 s and a barrel lens distortion (k1 = -0.12: 30 px at the corners),
-    whose calibration the tracker is given (it is the camera's)."""
+    """
+    (camera, render options, scene) of the hard case.
+
+    ``cluttered_scene``, sensor noise 6, motion blur over 1/60 s and a barrel lens distortion (k1 =
+    -0.12: 30 px at the corners), whose calibration the tracker is given (it is the camera's).
+    """
     camera = CameraModel(dist_coeffs=(-0.12, 0.02, 0.0005, -0.0008, 0.0))
     options = RenderOptions(noise=6.0, exposure=1 / 60, seed=11)
     return camera, options, cluttered_scene(run, camera, compression, quality, cross_at)
@@ -148,8 +159,11 @@ def evaluate(run: Run, camera: CameraModel = CameraModel(),
              start: float = 0.0, hidden=lambda k: (), scene: SceneOptions = SceneOptions(),
              tracker_camera: Optional[CameraModel] = None, end: Optional[float] = None) \
         -> Evaluation:
-    """Render the run from ``start`` (to ``end``, default the run's end) and track it; the
-    tracker sees ``tracker_camera`` (default: the rendering camera, so it knows the lens)."""
+    """
+    Render the run from ``start`` (to ``end``, default the run's end) and track it.
+
+    The tracker sees ``tracker_camera`` (default: the rendering camera, so it knows the lens).
+    """
     renderer = Renderer(run.scenario.robot, run.scenario.conditions.gap, camera, options, scene)
     tracker = Tracker(tracker_camera or camera, config)
     radius = options.marker_radius

@@ -1,4 +1,5 @@
-"""Two-pink-marker tracker: robot position, pitch and speed from images alone.
+"""
+Two-pink-marker tracker: robot position, pitch and speed from images alone.
 
 It knows nothing of the simulation: only a camera model (``CameraModel``: pixels per metre or K
 and the distance to the plane of motion, the slope of the surfaces as a level camera sees them,
@@ -105,10 +106,14 @@ _KERNEL = np.ones((3, 3), np.uint8)
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    """What the markers look like and how the tracker follows them. Each field carries its unit,
-    range and description (``core.params.spec``): the vision node's parameters, its
-    msg_config/vision.yaml and ``saw-ros track``'s options are made from them. The ranges are
-    those ``__post_init__`` checks (open bounds and the checks between fields stay there)."""
+    """
+    What the markers look like and how the tracker follows them.
+
+    Each field carries its unit, range and description (``core.params.spec``): the vision node's
+    parameters, its msg_config/vision.yaml and ``saw-ros track``'s options are made from them. The
+    ranges are those ``__post_init__`` checks (open bounds and the checks between fields stay
+    there).
+    """
     hue_min: int = spec(140, '', 'pink hue window lower end, OpenCV hue 0-179 (a window with '
                                  'min > max wraps through 0)', 0, 179)
     hue_max: int = spec(172, '', 'pink hue window upper end, OpenCV hue 0-179', 0, 179)
@@ -244,8 +249,11 @@ def _ls_slope(t: np.ndarray, y: np.ndarray) -> float:
 
 def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
            encoding: str = 'bgr8') -> List[Candidate]:
-    """Pink blobs in a BGR (or RGB) uint8 image with sub-pixel centroids (image pixels), area and
-    colour; heaviest first."""
+    """
+    Pink blobs in a BGR (or RGB) uint8 image with sub-pixel centroids.
+
+    (image pixels), area and colour; heaviest first.
+    """
     if image is None or image.ndim != 3 or image.shape[2] != 3:
         raise ValueError('detect needs an HxWx3 colour image')
     if encoding not in ('bgr8', 'rgb8'):
@@ -387,8 +395,9 @@ class Tracker:
 
     @property
     def last_time(self) -> Optional[float]:
-        """Time of the last frame given to ``update`` (None before the first): the next must be
-        later."""
+        """
+        Time of the last frame given to ``update`` (None before the first): the next must be later.
+        """
         return self._last_t
 
     @property
@@ -401,9 +410,13 @@ class Tracker:
         return self._spacing
 
     def move_camera(self, camera: CameraModel) -> None:
-        """The camera moved parallel to the plane of motion (same size, scale and lens: a camera
-        on a rail following the robot): tracking goes on, what is known in ideal pixels moves
-        with the picture; positions and speeds stay continuous in the surface frame."""
+        """
+        The camera moved parallel to the plane of motion.
+
+        (same size, scale and lens: a camera on a rail following the robot): tracking goes on, what
+        is known in ideal pixels moves with the picture; positions and speeds stay continuous in
+        the surface frame.
+        """
         delta = complex(camera.to_pixels(0j)) - complex(self.camera.to_pixels(0j))
         for track in self._tracks.values():
             if track.p is not None:
@@ -422,8 +435,12 @@ class Tracker:
         return self._spacing
 
     def _motions(self, cands: List[Candidate]) -> List[Optional[complex]]:
-        """Each candidate's displacement since it was first seen (up to MOTION_FRAMES frames
-        back; None when new): candidates are chained to the nearest of the previous frame's."""
+        """
+        Each candidate's displacement since it was first seen.
+
+        (up to MOTION_FRAMES frames back; None when new): candidates are chained to the nearest of
+        the previous frame's.
+        """
         free = list(range(len(self._chains)))
         chains, motions = [], []
         for c in cands:
@@ -667,9 +684,12 @@ def steady_speed(times, x, window: float) -> Optional[float]:
 
 
 def scale_from_spacing(results, spacing: float) -> Optional[Tuple[float, int, float]]:
-    """The scale (px per metre) that makes the markers ``spacing`` m apart: the median of the
-    measured ``spacing_px`` of the ok frames over it, with the number of frames and the spread
-    (half the 16-84 % range, px). None without an ok frame."""
+    """
+    The scale (px per metre) that makes the markers ``spacing`` m apart.
+
+    The median of the measured ``spacing_px`` of the ok frames over it, with the number of frames
+    and the spread (half the 16-84 % range, px). None without an ok frame.
+    """
     d = np.array([r.spacing_px for r in results if r.ok and r.spacing_px is not None])
     if d.size == 0:
         return None

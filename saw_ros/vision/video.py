@@ -1,4 +1,5 @@
-"""Video files: write rendered frames to .mp4, read any video frame by frame.
+"""
+Video files: write rendered frames to .mp4, read any video frame by frame.
 
 Writing uses OpenCV's FFmpeg back end with the MPEG-4 Part 2 codec (fourcc 'mp4v'): the one .mp4
 encoder that opencv-python-headless carries (H.264 'avc1' is not built in). Frames are BGR.
@@ -75,8 +76,12 @@ def _open(path) -> cv2.VideoCapture:
 
 
 def read_frames(path, fps: Optional[float] = None) -> Iterator[Tuple[int, float, np.ndarray]]:
-    """Yield (index, time in s, BGR frame) for every frame; time = index / fps, fps from the file
-    unless given. Raises VideoError when the file is missing, unreadable or has no frames."""
+    """
+    Yield (index, time in s, BGR frame) for every frame.
+
+    Time = index / fps, fps from the file unless given. Raises VideoError when the file is missing,
+    unreadable or has no frames.
+    """
     cap = _open(path)
     try:
         rate = fps if fps else cap.get(cv2.CAP_PROP_FPS)

@@ -1,6 +1,10 @@
-"""The paper's claims that our model holds, computed by the same code as the fidelity report
-(saw_ros/analysis/figures/claims.py) on the quick grids. A change that breaks one of them fails here; a
-claim that starts to hold should move from NOT_HELD to HELD (and the report be regenerated)."""
+"""
+The paper's claims that our model holds, computed by the same code as the fidelity report.
+
+(saw_ros/analysis/figures/claims.py) on the quick grids. A change that breaks one of them fails
+here; a claim that starts to hold should move from NOT_HELD to HELD (and the report be
+regenerated).
+"""
 import pytest
 
 from saw_ros.analysis.figures import claims as claims_mod

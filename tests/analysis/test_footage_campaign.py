@@ -1,6 +1,10 @@
-"""saw-ros campaign --videos (issue 12): the sample manifest's footage (made from our own
-simulation, one clip cluttered) tracked and compared with the simulated conditions: relative
-errors under 2 %, figures and tables written; manifest errors refused with the row."""
+"""
+saw-ros campaign --videos (issue 12).
+
+The sample manifest's footage (made from our own simulation, one clip cluttered) tracked and
+compared with the simulated conditions: relative errors under 2 %, figures and tables written;
+manifest errors refused with the row.
+"""
 import csv
 from pathlib import Path
 

@@ -1,6 +1,10 @@
-"""Damaged bytes are reported as damage (which chunk, its log time range, how many messages are
-lost and readable; ``saw-ros bag info`` exits 1, BagReader raises) unless salvaging; a file cut
-short (the recorder killed) is unfinished, not damaged; decode failures name topic and message."""
+"""
+Damaged bytes are reported as damage.
+
+(which chunk, its log time range, how many messages are lost and readable; ``saw-ros bag info``
+exits 1, BagReader raises) unless salvaging; a file cut short (the recorder killed) is unfinished,
+not damaged; decode failures name topic and message.
+"""
 import os
 import shutil
 import struct

@@ -1,7 +1,10 @@
-"""Messages in a written bag are in log_time order and its chunks do not overlap in time, although
+"""
+Messages in a written bag are in log_time order and its chunks do not overlap in time, although.
+
 the recorder hands them to the writer in bursts per subscription (``mcap doctor
 --strict-message-order`` and ``mcap info``'s "overlaps: no" hold). Checked with the mcap library's
-stream reader (file order, not the indexed reader, which sorts)."""
+stream reader (file order, not the indexed reader, which sorts).
+"""
 import os
 import random
 import signal
@@ -29,8 +32,11 @@ IMAGE = len(TOPICS) - 1
 
 
 def received(seconds=2.0, seed=7):
-    """Per topic, what a subscription receives: (log_time, publish_time, sequence, data) in
-    receive order; 1 kHz on six topics, 60 Hz images."""
+    """
+    Per topic, what a subscription receives.
+
+    (log_time, publish_time, sequence, data) in receive order; 1 kHz on six topics, 60 Hz images.
+    """
     rng = random.Random(seed)
     out = []
     for k in range(IMAGE):
@@ -42,10 +48,13 @@ def received(seconds=2.0, seed=7):
 
 
 def recorder_order(per_topic, seed=3):
-    """The order the recorder's callbacks take them: executor rounds every ms, each round the
-    ready subscriptions in random order, each taking everything received so far; a 1 kHz
-    subscription is ready in 40 % of the rounds (bursts of ~2.5 ms), the image one (its own
-    participant and thread) only every 150 rounds."""
+    """
+    The order the recorder's callbacks take them.
+
+    Executor rounds every ms, each round the ready subscriptions in random order, each taking
+    everything received so far; a 1 kHz subscription is ready in 40 % of the rounds (bursts of ~2.5
+    ms), the image one (its own participant and thread) only every 150 rounds.
+    """
     rng = random.Random(seed)
     pending = [list(reversed(msgs)) for msgs in per_topic]
     order = []
@@ -160,8 +169,11 @@ def test_buffer_byte_limit_writes_the_oldest_first(tmp_path):
 
 
 def test_quiet_recording_writes_its_buffer(tmp_path):
-    """No message for idle_flush_s: the buffer goes to the file (a kill -9 then loses only the
-    open chunk, as before the buffer)."""
+    """
+    No message for idle_flush_s.
+
+    The buffer goes to the file (a kill -9 then loses only the open chunk, as before the buffer).
+    """
     bag = BagWriter(str(tmp_path / 'quiet'), chunk_size=1024, idle_flush_s=0.2)
     bag.add_topic('/a', 'std_msgs/msg/String', [qos_profile_dict()])
     for i in range(300):                          # 0.3 s: all within the 0.5 s window
@@ -184,8 +196,11 @@ def wait_until(condition, timeout):
 
 
 def test_killed_writer_leaves_complete_ordered_chunks(tmp_path):
-    """kill -9 while recording: the chunks written so far are readable and in order; what is
-    lost is the reorder buffer (0.5 s) and the open chunk."""
+    """
+    Kill -9 while recording: the chunks written so far are readable and in order.
+
+    What is lost is the reorder buffer (0.5 s) and the open chunk.
+    """
     script = textwrap.dedent(f'''
         import os, signal, sys
         sys.path.insert(0, {os.getcwd()!r})

@@ -1,5 +1,9 @@
-"""A benchmark rung whose processes hang is a failed rung with its logs kept, and a module that
-fails anyway does not take the bench (and the other modules' figures) down with it."""
+"""
+A benchmark rung whose processes hang is a failed rung with its logs kept.
+
+And a module that fails anyway does not take the bench (and the other modules' figures) down with
+it.
+"""
 import argparse
 import json
 import sys
@@ -76,10 +80,13 @@ def test_one_real_rung_passes_through_measure(tmp_path):
 @pytest.mark.ros
 @pytest.mark.slow
 def test_a_domain_another_run_publishes_in_is_left_for_another(tmp_path, monkeypatch):
-    """A domain another graph uses (not one of ours: those are reserved): another simulator's
-    messages counted as ours and kept the bench's subscriber alive past the rung (the
-    TimeoutExpired of issue 10). The subscriber finds the other publishers first; the rung is
-    run in another domain."""
+    """
+    A domain another graph uses (not one of ours: those are reserved).
+
+    Another simulator's messages counted as ours and kept the bench's subscriber alive past the
+    rung (the TimeoutExpired of issue 10). The subscriber finds the other publishers first; the
+    rung is run in another domain.
+    """
     from saw_ros.graph import process
     from saw_ros.bench import simulator_node
     from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command, wait_for

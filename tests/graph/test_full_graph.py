@@ -1,5 +1,9 @@
-"""The whole graph as separate processes (simulator, camera, vision, comparison, recorder) on a
-short run, and the in-process campaign on the same condition: the same numbers."""
+"""
+The whole graph as separate processes.
+
+(simulator, camera, vision, comparison, recorder) on a short run, and the in-process campaign on
+the same condition: the same numbers.
+"""
 import math
 
 import pytest

@@ -1,5 +1,8 @@
-"""The topic table (saw_ros/interface/topics.py) is the one source: the generated
-msg_config/record_topics.yaml and the README's topic table agree with it."""
+"""
+The topic table (saw_ros/interface/topics.py) is the one source.
+
+The generated msg_config/record_topics.yaml and the README's topic table agree with it.
+"""
 import re
 from pathlib import Path
 

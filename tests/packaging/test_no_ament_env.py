@@ -1,8 +1,11 @@
-"""No hidden environment: what we ship finds message definitions, type hashes and our own
-msg_config files from the installed packages themselves, without AMENT_PREFIX_PATH (a shell with
-only `source .venv/bin/activate`, `.venv/bin/saw-ros` called directly, a colcon install sourced
-without its underlay). Where nothing can be found, the recorder refuses before creating anything,
-with one line saying what to source."""
+"""
+No hidden environment.
+
+What we ship finds message definitions, type hashes and our own msg_config files from the installed
+packages themselves, without AMENT_PREFIX_PATH (a shell with only `source .venv/bin/activate`,
+`.venv/bin/saw-ros` called directly, a colcon install sourced without its underlay). Where nothing
+can be found, the recorder refuses before creating anything, with one line saying what to source.
+"""
 import os
 import subprocess
 import sys
@@ -181,8 +184,11 @@ def test_recorder_writes_a_full_bag_without_ament_prefix_path(tmp_path):
 
 @pytest.mark.ros
 def test_recorder_without_definitions_refuses_before_creating_the_bag(tmp_path):
-    """Nothing beside the Python packages and no AMENT_PREFIX_PATH: one line saying what to
-    source, exit code 1, no bag directory."""
+    """
+    Nothing beside the Python packages and no AMENT_PREFIX_PATH.
+
+    One line saying what to source, exit code 1, no bag directory.
+    """
     out = tmp_path / 'bag'
     code = textwrap.dedent(f'''
         import sys

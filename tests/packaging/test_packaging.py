@@ -1,10 +1,13 @@
-"""`ros2 run` readiness of the install the suite runs against, in either layout:
+"""
+`ros2 run` readiness of the install the suite runs against, in either layout.
+
 - venv: scripts/bootstrap.sh's pip install into .venv (the venv is laid out like a ROS install
   prefix: executables in <venv>/lib/saw_ros/<exe>, the ament index entry, share/saw_ros);
 - colcon: `colcon build` then `colcon test` in a workspace (install/saw_ros/..., tests run from
   the source folder with the install on PYTHONPATH and AMENT_PREFIX_PATH).
 Tests that only make sense in one layout skip with the reason in the other. None writes into the
-source tree. Also: package.xml format 3, setup.py's test requirement, the shared config."""
+source tree. Also: package.xml format 3, setup.py's test requirement, the shared config.
+"""
 import os
 import re
 import runpy
@@ -23,8 +26,12 @@ MARKER = Path('share', 'ament_index', 'resource_index', 'packages', 'saw_ros')
 
 
 def installed_prefix():
-    """The install prefix of saw_ros this suite runs against: the venv itself (bootstrap.sh), else
-    the first prefix of AMENT_PREFIX_PATH that lists saw_ros (colcon test sets it), else None."""
+    """
+    The install prefix of saw_ros this suite runs against.
+
+    The venv itself (bootstrap.sh), else the first prefix of AMENT_PREFIX_PATH that lists saw_ros
+    (colcon test sets it), else None.
+    """
     candidates = [sys.prefix] + os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
     for prefix in filter(None, candidates):
         if (Path(prefix) / MARKER).is_file():
@@ -115,8 +122,12 @@ def test_installed_share_has_package_xml_and_every_config_file():
 
 @needs_install
 def test_ament_index_finds_the_installed_package():
-    """The install is an ament prefix of saw_ros (what `ros2 run` needs), with AMENT_PREFIX_PATH
-    as scripts/bootstrap.sh or a colcon setup.bash exports it."""
+    """
+    The install is an ament prefix of saw_ros.
+
+    (what `ros2 run` needs), with AMENT_PREFIX_PATH as scripts/bootstrap.sh or a colcon setup.bash
+    exports it.
+    """
     code = ('from ament_index_python.packages import get_package_prefix, '
             'get_package_share_directory as share; '
             "print(get_package_prefix('saw_ros')); print(share('saw_ros'))")
@@ -131,8 +142,12 @@ def test_ament_index_finds_the_installed_package():
 
 @venv_only
 def test_bootstrap_environment_exports_the_ament_prefix():
-    """`source scripts/bootstrap.sh` (the venv exists already: nothing is created) puts the venv
-    first in AMENT_PREFIX_PATH, so that ament tools and `ros2 run` see saw_ros."""
+    """
+    `source scripts/bootstrap.sh`.
+
+    (the venv exists already: nothing is created) puts the venv first in AMENT_PREFIX_PATH, so that
+    ament tools and `ros2 run` see saw_ros.
+    """
     env = {k: v for k, v in os.environ.items() if k != 'AMENT_PREFIX_PATH'}
     out = subprocess.run(['bash', '-c', 'source scripts/bootstrap.sh >/dev/null && '
                           'echo "$AMENT_PREFIX_PATH"'], cwd=ROOT, env=env, capture_output=True,
@@ -154,8 +169,12 @@ def test_simulator_runs_from_lib_saw_ros_with_the_installed_config(tmp_path):
 
 
 def test_simulator_yaml_lists_every_parameter_with_the_core_defaults():
-    """msg_config/simulator.yaml = the paper's set-up = the core defaults, nothing missing or
-    unknown (regenerate it with `python -m saw_ros.ros.nodes.simulator --write-yaml ...`)."""
+    """
+    msg_config/simulator.yaml = the paper's set-up = the core defaults.
+
+    Nothing missing or unknown (regenerate it with `python -m saw_ros.ros.nodes.simulator
+    --write-yaml ...`).
+    """
     import yaml
 
     from saw_ros.core import Scenario
@@ -178,10 +197,13 @@ def test_simulator_yaml_lists_every_parameter_with_the_core_defaults():
 @pytest.mark.parametrize('node', ['simulator', 'camera', 'vision', 'comparison', 'recorder',
                                   'player'])
 def test_msg_config_yaml_is_generated_from_the_parameter_definitions(node, tmp_path):
-    """Every node's msg_config/<node>.yaml is what `python -m saw_ros.ros.nodes.<node>
-    --write-yaml` writes from the spec() definitions the node declares its parameters from
-    (core.params Scenario, vision TrackerConfig / CameraModel / RenderOptions, the node's own
-    table): regenerating gives the same bytes."""
+    """
+    Every node's msg_config/<node>.yaml is generated from its parameter definitions.
+
+    It is what `python -m saw_ros.ros.nodes.<node> --write-yaml` writes from the spec()
+    definitions the node declares its parameters from (core.params Scenario, vision TrackerConfig
+    / CameraModel / RenderOptions, the node's own table): regenerating gives the same bytes.
+    """
     import importlib
     module = importlib.import_module(f'saw_ros.ros.nodes.{node}')
     out = tmp_path / f'{node}.yaml'

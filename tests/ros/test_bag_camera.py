@@ -1,6 +1,10 @@
-"""The camera reference recording (bags/reference_camera) replayed through the tracker gives the
-recorded run's AR: offline (images read from the bag) and live (player -> vision node through
-real topics). Ground truth: the recorded /saw/pose (RunComparator, as the comparison node)."""
+"""
+The camera reference recording.
+
+(bags/reference_camera) replayed through the tracker gives the recorded run's AR: offline (images
+read from the bag) and live (player -> vision node through real topics). Ground truth: the recorded
+/saw/pose (RunComparator, as the comparison node).
+"""
 import os
 
 import numpy as np
@@ -94,8 +98,11 @@ def test_replay_through_the_tracker_gives_the_recorded_ar(offline):
 @pytest.mark.ros
 @pytest.mark.slow
 def test_player_into_vision_node_gives_the_same_ar(offline, tmp_path, ros_context):
-    """player (images, camera info, /saw/pose) -> vision node -> /saw/tracking/pose, through
-    real topics; the AR from what arrives equals the offline replay's."""
+    """
+    Player (images, camera info, /saw/pose) -> vision node -> /saw/tracking/pose.
+
+    Through real topics; the AR from what arrives equals the offline replay's.
+    """
     from geometry_msgs.msg import PoseStamped
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node

@@ -1,8 +1,12 @@
-"""The camera follows the robot (issue 12): with a fixed camera the robot walks out of the
-picture after about 13 s of simulated time and /saw/tracking/* go silent; the camera node's
-``follow`` moves it along the track in steps, the CameraInfo's principal point carries the offset,
-and the vision node keeps metric positions continuous. A 20 s run (a small picture: several
-moves) is tracked to its end, every frame but at most one per move ok."""
+"""
+The camera follows the robot (issue 12).
+
+With a fixed camera the robot walks out of the picture after about 13 s of simulated time and
+/saw/tracking/* go silent; the camera node's ``follow`` moves it along the track in steps, the
+CameraInfo's principal point carries the offset, and the vision node keeps metric positions
+continuous. A 20 s run (a small picture: several moves) is tracked to its end, every frame but at
+most one per move ok.
+"""
 import math
 
 import pytest

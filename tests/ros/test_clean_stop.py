@@ -1,8 +1,12 @@
-"""Clean stops (issue 10): SIGINT and SIGTERM end every node with exit 0, no traceback and no
-FATAL line, every time, and a recording stopped that way is complete.
+"""
+Clean stops (issue 10).
+
+SIGINT and SIGTERM end every node with exit 0, no traceback and no FATAL line, every time, and a
+recording stopped that way is complete.
 
 Launch-free: the nodes are subprocesses (saw_ros.graph.process) in the run's isolated DDS domain, started
-as the main job starts them (saw_ros.graph.pipeline.run_pipeline); every wait is on a condition."""
+as the main job starts them (saw_ros.graph.pipeline.run_pipeline); every wait is on a condition.
+"""
 import os
 import signal
 import time
@@ -34,9 +38,12 @@ def clean(proc: ManagedProcess, code: int) -> str:
 
 
 def stop_all(procs, sig, together: bool):
-    """Send ``sig`` to each process's group, in order, each waited for before the next (as
-    run_pipeline stops the graph), or to all at once (Ctrl-C in a terminal reaches a whole
-    foreground group); returns {name: exit code}."""
+    """
+    Send ``sig`` to each process's group, in order, each waited for before the next.
+
+    (as run_pipeline stops the graph), or to all at once (Ctrl-C in a terminal reaches a whole
+    foreground group); returns {name: exit code}.
+    """
     codes = {}
     if together:
         for p in procs:
@@ -52,8 +59,12 @@ def stop_all(procs, sig, together: bool):
 
 
 class Graph:
-    """The five nodes of the main job, started in run_pipeline's order and waits; the simulator
-    runs until stopped (duration 0) and starts stepping once the recorder has matched it."""
+    """
+    The five nodes of the main job, started in run_pipeline's order and waits.
+
+    The simulator runs until stopped (duration 0) and starts stepping once the recorder has matched
+    it.
+    """
 
     def __init__(self, tmp_path, env, bag_dir, real_time_factor=0.5, small=False):
         logs = tmp_path / 'logs'
@@ -103,12 +114,16 @@ class Graph:
 
 
 def check_bag(bag_dir, steps=None, frames=None, fps=60.0):
-    """The recording stopped this way is complete: metadata.yaml written, every file finished,
-    counts in metadata.yaml equal to the messages in the files, each 1 kHz stream's steps in
-    order from 1 ms on; given the simulator's and the camera's counts (the recorder stopped after
-    them), the last step on every stream and the last frame's camera_info. Returns the steps
-    and frames missing in between ({topic: n}): loss while running is not the stop's doing
-    (it shows when the shared machine starves a subscriber; see docs/bags.md)."""
+    """
+    The recording stopped this way is complete.
+
+    Metadata.yaml written, every file finished, counts in metadata.yaml equal to the messages in
+    the files, each 1 kHz stream's steps in order from 1 ms on; given the simulator's and the
+    camera's counts (the recorder stopped after them), the last step on every stream and the last
+    frame's camera_info. Returns the steps and frames missing in between ({topic: n}): loss while
+    running is not the stop's doing (it shows when the shared machine starves a subscriber; see
+    docs/bags.md).
+    """
     assert (bag_dir / 'metadata.yaml').is_file()
     reader = BagReader(str(bag_dir))
     topics = reader.topics()
@@ -154,8 +169,11 @@ def simulator_steps(simulator: ManagedProcess) -> int:
 
 
 class Counter:
-    """Counts the messages of some topics ({topic: type}) in the test process: a new node each
-    time, so that nothing left from a previous run counts."""
+    """
+    Counts the messages of some topics ({topic: type}) in the test process.
+
+    A new node each time, so that nothing left from a previous run counts.
+    """
 
     def __init__(self, context, topics):
         from rclpy.executors import SingleThreadedExecutor
@@ -177,8 +195,11 @@ class Counter:
                         spin=lambda t: self.executor.spin_once(timeout_sec=t))
 
     def strangers(self):
-        """Nodes in the DDS domain that none of our runs starts (another run's: then the test's
-        findings are not about our graph)."""
+        """
+        Nodes in the DDS domain that none of our runs starts.
+
+        (another run's: then the test's findings are not about our graph).
+        """
         ours = {'simulator', 'comparison', 'vision', 'camera', 'recorder', 'recorder_large',
                 'clean_stop_watcher'}
         return sorted(set(self.node.get_node_names()) - ours)
@@ -197,9 +218,12 @@ ROUNDS = [(signal.SIGINT, False), (signal.SIGTERM, False), (signal.SIGINT, True)
 
 @pytest.mark.slow
 def test_whole_graph_stops_cleanly_on_sigint_and_sigterm_every_time(tmp_path, ros_context):
-    """Five rounds of the whole graph (simulator, camera, vision, comparison, recorder), each
-    stopped while tracking runs: every node exits 0 with neither traceback nor FATAL line, and
-    the bag is complete."""
+    """
+    Five rounds of the whole graph.
+
+    (simulator, camera, vision, comparison, recorder), each stopped while tracking runs: every node
+    exits 0 with neither traceback nor FATAL line, and the bag is complete.
+    """
     env = dict(os.environ)      # the run's isolated domain (conftest), the watcher's too
     for i, (sig, together) in enumerate(ROUNDS):
         start = time.monotonic()
@@ -233,9 +257,12 @@ def test_whole_graph_stops_cleanly_on_sigint_and_sigterm_every_time(tmp_path, ro
 
 @pytest.mark.slow
 def test_simulator_stops_cleanly_on_sigint_while_publishing(tmp_path, ros_context):
-    """Ten Ctrl-C's of a simulator publishing its 1 kHz streams to a subscriber of every topic
+    """
+    Ten Ctrl-C's of a simulator publishing its 1 kHz streams to a subscriber of every topic.
+
     (the test's): exit 0, no traceback, no FATAL line, and every step it published received, each
-    time."""
+    time.
+    """
     env = dict(os.environ)
     for i in range(10):
         watcher = Counter(ros_context, SIM_TOPICS)

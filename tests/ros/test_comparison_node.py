@@ -1,5 +1,9 @@
-"""The comparison node through real topics: simulator node + a stand-in tracker (98 % of the
-true position, 60 Hz of simulated time) -> /saw/comparison."""
+"""
+The comparison node through real topics.
+
+Simulator node + a stand-in tracker (98 % of the true position, 60 Hz of simulated time) ->
+/saw/comparison.
+"""
 import json
 import math
 

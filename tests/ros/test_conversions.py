@@ -1,4 +1,4 @@
-"""numpy -> message conversions of the simulator, without any node."""
+"""Numpy -> message conversions of the simulator, without any node."""
 import array
 import math
 from typing import Optional, Sequence
@@ -60,8 +60,12 @@ def wrench_msg(fx: float, fy: float, mz: float, nanoseconds: int,
 def joint_state_msg(names: Sequence[str], phase: float, omega: float, angles: np.ndarray,
                     rates: np.ndarray, nanoseconds: int,
                     out: Optional[JointState] = None) -> JointState:
-    """``helix``: phase in [0, 2 pi) and speed omega = 2 pi f; then ``base_link_joint`` and
-    ``link_00``..: ``angles`` (rad, relative to the body x axis) and ``rates`` (rad/s)."""
+    """
+    ``helix``: phase in [0, 2 pi) and speed omega = 2 pi f.
+
+    Then ``base_link_joint`` and ``link_00``..: ``angles`` (rad, relative to the body x axis) and
+    ``rates`` (rad/s).
+    """
     msg = JointState() if out is None else out
     conv.time_msg(nanoseconds, msg.header.stamp)
     msg.header.frame_id = conv.BODY_FRAME
@@ -149,8 +153,11 @@ def test_contacts_cloud_is_self_describing_and_round_trips():
 
 
 def test_wrench_is_the_core_net_force_and_moment_about_the_com():
-    """The simulator publishes the net force and moment the core accelerated the body with: the
-    sums over the tips in contact, the moment taken at the tip positions about the COM."""
+    """
+    The simulator publishes the net force and moment the core accelerated the body with.
+
+    The sums over the tips in contact, the moment taken at the tip positions about the COM.
+    """
     sim = Simulator(Scenario())
     for _ in range(299):
         sim.step()
@@ -194,10 +201,14 @@ def test_joint_table_matches_link_geometry():
 
 
 def test_cdr_encoders_match_rclpy_serialization():
-    """The simulator publishes bytes: each encoder must give exactly rclpy's CDR of the message
-    built by the message functions. serialize_message may add trailing bytes and leaves padding
-    bytes uninitialised: compare the prefix where ours is not padding (zero), and check that the
-    bytes deserialize back to the same message."""
+    """
+    The simulator publishes bytes.
+
+    Each encoder must give exactly rclpy's CDR of the message built by the message functions.
+    serialize_message may add trailing bytes and leaves padding bytes uninitialised: compare the
+    prefix where ours is not padding (zero), and check that the bytes deserialize back to the same
+    message.
+    """
     from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState

@@ -1,7 +1,10 @@
-"""Start-up refusals and run-time parameter changes of the comparison, recorder and player
-nodes: invalid values end the node at start with one line of reason (exit 1, no traceback);
-parameters read only at start are read-only, so `ros2 param set` is refused with the reason while
-the node runs on."""
+"""
+Start-up refusals and run-time parameter changes of the comparison, recorder and player nodes.
+
+Invalid values end the node at start with one line of reason (exit 1, no traceback); parameters
+read only at start are read-only, so `ros2 param set` is refused with the reason while the node
+runs on.
+"""
 import os
 import signal
 import sys
@@ -183,8 +186,12 @@ def test_player_parameters_are_read_only_while_playing(tmp_path, ros_context):
 
 @pytest.mark.slow
 def test_player_end_does_not_wait_forever_for_a_stalled_subscriber(tmp_path):
-    """A reliable subscriber that stops acknowledging (here: SIGSTOP) no longer keeps the
-    player from exiting: it waits ACK_TIMEOUT, names the topic, exits 0."""
+    """
+    A reliable subscriber that stops acknowledging.
+
+    (here: SIGSTOP) no longer keeps the player from exiting: it waits ACK_TIMEOUT, names the topic,
+    exits 0.
+    """
     from saw_ros.ros.runtime import FLUSH_TIMEOUT as ACK_TIMEOUT
     listener = start(tmp_path, 'comparison')          # a reliable /saw/pose subscriber
     player = None

@@ -1,5 +1,9 @@
-"""The recorder says what it lost: per topic, from gaps in the publication sequence numbers, in
-its final line and in metadata.yaml's custom_data."""
+"""
+The recorder says what it lost.
+
+Per topic, from gaps in the publication sequence numbers, in its final line and in metadata.yaml's
+custom_data.
+"""
 import json
 import os
 import re

@@ -1,5 +1,9 @@
-"""The simulator node through real topics: a subprocess in the run's isolated DDS domain, watched
-from the test with a private rclpy context. Every wait is on a condition, with a timeout."""
+"""
+The simulator node through real topics.
+
+A subprocess in the run's isolated DDS domain, watched from the test with a private rclpy context.
+Every wait is on a condition, with a timeout.
+"""
 import math
 import signal
 import struct
@@ -35,8 +39,11 @@ def _type(topic):
 
 
 def stamp_of(raw: bytes) -> int:
-    """Stamp of a CDR message whose first field is a Time (Clock) or a Header: 4 bytes of
-    encapsulation, then int32 sec, uint32 nanosec."""
+    """
+    Stamp of a CDR message whose first field is a Time (Clock) or a Header.
+
+    4 bytes of encapsulation, then int32 sec, uint32 nanosec.
+    """
     sec, nanosec = struct.unpack_from('<iI', raw, 4)
     return sec * 1_000_000_000 + nanosec
 
@@ -132,8 +139,12 @@ def assert_every_step_once(stamps, first, last):
 
 
 def test_streams_every_step_and_advance_like_the_core(start_simulator, watcher):
-    """3 s of simulated time: every topic carries 3000 stamps 1 ms apart, /clock gives the same
-    times, the node exits 0 by itself, and the pose is the core's own trajectory (AR included)."""
+    """
+    3 s of simulated time.
+
+    Every topic carries 3000 stamps 1 ms apart, /clock gives the same times, the node exits 0 by
+    itself, and the pose is the core's own trajectory (AR included).
+    """
     steps = 3000
     proc = start_simulator(real_time_factor=RTF, duration=steps / 1000.0)
     done = watcher.wait(lambda: min(map(watcher.count, TOPICS)) >= steps, timeout=30)
@@ -177,10 +188,14 @@ def test_streams_every_step_and_advance_like_the_core(start_simulator, watcher):
 
 
 def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
-    """At rest on a slope the contacts carry the weight; an invalid or frozen parameter is refused
-    while the node runs on; a valid one takes effect; ~/reset restarts the robot, not the time;
-    SIGTERM exits 0 without a traceback. (Messages are decoded at the end: a test that stops
-    spinning to decode at 6000 messages/s would lose messages of its own making.)"""
+    """
+    At rest on a slope the contacts carry the weight.
+
+    An invalid or frozen parameter is refused while the node runs on; a valid one takes effect;
+    ~/reset restarts the robot, not the time; SIGTERM exits 0 without a traceback. (Messages are
+    decoded at the end: a test that stops spinning to decode at 6000 messages/s would lose messages
+    of its own making.)
+    """
     slope = 0.3
     proc = start_simulator(real_time_factor=RTF, **{'conditions.frequency': 0.0,
                                                     'conditions.slope': slope})
@@ -247,8 +262,12 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
 
 
 def test_divergence_stops_with_an_error_and_no_nan(start_simulator, watcher):
-    """Surfaces far too soft to hold the robot: it sinks through the bottom one, the core raises
-    DivergenceError, and the node logs why and exits 1 without ever publishing NaN."""
+    """
+    Surfaces far too soft to hold the robot.
+
+    It sinks through the bottom one, the core raises DivergenceError, and the node logs why and
+    exits 1 without ever publishing NaN.
+    """
     proc = start_simulator(real_time_factor=0.0, **{'surface.normal_stiffness': 1.0})
     assert proc.wait(timeout=30) == 1, proc.output()
     watcher.wait(lambda: False, 0.3)
@@ -261,8 +280,12 @@ def test_divergence_stops_with_an_error_and_no_nan(start_simulator, watcher):
 
 def test_as_fast_as_possible_still_serves_requests_and_stops_on_sigint(start_simulator,
                                                                        watcher):
-    """real_time_factor 0: requests are served between batches of steps, and Ctrl-C (SIGINT to
-    the process group) exits 0. (No stamp check: no Python subscriber keeps up at rtf 0.)"""
+    """
+    real_time_factor 0: requests are served between batches of steps, and Ctrl-C.
+
+    (SIGINT to the process group) exits 0. (No stamp check: no Python subscriber keeps up at rtf
+    0.).
+    """
     proc = start_simulator(real_time_factor=0.0)
     assert watcher.wait(lambda: watcher.count() >= 100, 20), proc.output()
     assert watcher.set_parameter('conditions.slope', 0.1).successful

@@ -1,8 +1,11 @@
-"""video_source: footage as the camera stream (issue 12). A short clip made from our own
-simulation (known speed) -> video_source (a process, publishing /clock) -> the vision node
-(use_sim_time, scale from the CameraInfo) -> /saw/tracking/* give the true speed; the source
-exits 0 at the end of the file; a missing or damaged video is refused in one line with exit 1.
-Every wait is on a condition."""
+"""
+video_source: footage as the camera stream (issue 12).
+
+A short clip made from our own simulation (known speed) -> video_source (a process, publishing
+/clock) -> the vision node (use_sim_time, scale from the CameraInfo) -> /saw/tracking/* give the
+true speed; the source exits 0 at the end of the file; a missing or damaged video is refused in one
+line with exit 1. Every wait is on a condition.
+"""
 import os
 
 import numpy as np

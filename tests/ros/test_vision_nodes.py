@@ -1,5 +1,8 @@
-"""camera + vision nodes through real topics (isolated domain from conftest), and the video the
-camera writes read back by the offline tracker."""
+"""
+Camera + vision nodes through real topics.
+
+(isolated domain from conftest), and the video the camera writes read back by the offline tracker.
+"""
 import math
 
 import pytest

@@ -1,7 +1,11 @@
-"""The tracker on footage it was not tuned on (issue 12): a pink colour window that refuses red
-and orange, acquisition among clutter (third pink markers, magenta, red), tracking through a
-pink thing passing the robot, lens distortion with its calibration, compression; the scale from
-the marker spacing; TrackerConfig's fields on the command line."""
+"""
+The tracker on footage it was not tuned on (issue 12).
+
+A pink colour window that refuses red and orange, acquisition among clutter (third pink markers,
+magenta, red), tracking through a pink thing passing the robot, lens distortion with its
+calibration, compression; the scale from the marker spacing; TrackerConfig's fields on the command
+line.
+"""
 
 import cv2
 import numpy as np
@@ -84,9 +88,12 @@ def _clutter_run(run, scene, config=TrackerConfig(), start=2.0, n=40, camera=Cam
 
 @pytest.mark.parametrize('window', [(140, 172), (145, 5)])
 def test_the_issues_orange_red_object_does_not_stop_acquisition(level_run, window):
-    """The issue's footage: an orange-red object in a corner, larger and heavier than a marker.
-    Measured from the first frame, with the new window (it is not pink) and with the old one
-    (it is not the markers' colour or size, nor on their line)."""
+    """
+    The issue's footage: an orange-red object in a corner, larger and heavier than a marker.
+
+    Measured from the first frame, with the new window (it is not pink) and with the old one (it is
+    not the markers' colour or size, nor on their line).
+    """
     scene = SceneOptions(clutter=(Clutter(ORANGE_RED, -0.12, 0.25, (0.08, 0.06), 'box'),
                                   Clutter((255, 40, 20), 0.75, -0.2, (0.05, 0.05))))
     config = TrackerConfig(hue_min=window[0], hue_max=window[1])
@@ -96,11 +103,14 @@ def test_the_issues_orange_red_object_does_not_stop_acquisition(level_run, windo
 
 
 def test_third_pink_markers_on_the_robots_line(level_run):
-    """Pink markers of the same size and colour on the robot's line, behind and ahead of it:
-    the known spacing picks the pair at once; without it, the pair that moves as one rigid
-    body does, once it has moved 4 px (ambiguous until then, never wrong). Both markers hidden
-    for longer than reacquire_after: acquired again at once (the spacing measured before
-    picks the pair)."""
+    """
+    Pink markers of the same size and colour on the robot's line, behind and ahead of it.
+
+    The known spacing picks the pair at once; without it, the pair that moves as one rigid body
+    does, once it has moved 4 px (ambiguous until then, never wrong). Both markers hidden for
+    longer than reacquire_after: acquired again at once (the spacing measured before picks the
+    pair).
+    """
     from saw_ros.vision.scene import HOT_PINK
     mid = Scenario().conditions.gap / 2
     pose = level_run.pose_at(2.0)
@@ -122,9 +132,13 @@ def test_third_pink_markers_on_the_robots_line(level_run):
 
 
 def test_pink_things_next_to_a_tracked_marker(level_run):
-    """While tracking: a pink blob 20 px from the front marker is not it (frame ok, front where
-    it is); a pink disc overlapping the marker (one blob, twice its size) makes the front
-    ambiguous; with the front hidden, two blobs equally near its expected place too."""
+    """
+    While tracking: a pink blob 20 px from the front marker is not it.
+
+    (frame ok, front where it is); a pink disc overlapping the marker (one blob, twice its size)
+    makes the front ambiguous; with the front hidden, two blobs equally near its expected place
+    too.
+    """
     s = Scenario()
     cam = CameraModel(mirror=True, center_x=0.1)
     r = Renderer(s.robot, s.conditions.gap, cam)
@@ -225,8 +239,11 @@ def test_roi_limits_detection():
 
 
 def test_track_command_takes_the_scale_from_the_marker_spacing(level_run, tmp_path, capsys):
-    """saw-ros track on cluttered footage with no ruler: --marker-spacing-m sets the scale (and
-    says so); the speed is the true one."""
+    """
+    saw-ros track on cluttered footage with no ruler.
+
+    --marker-spacing-m sets the scale (and says so); the speed is the true one.
+    """
     camera, _, scene = hard_footage(level_run, compression='', cross_at=3.5)
     camera = CameraModel()                  # no lens here: the command's calibration is tested
     scene = SceneOptions(clutter=scene.clutter, gradient=0.3, flicker=0.1)   # in the bench

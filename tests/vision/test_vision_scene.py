@@ -1,5 +1,9 @@
-"""Footage that does not look like the renderer's (saw_ros.vision.scene): clutter, lighting, lens
-distortion and compression are drawn as asked, and the camera's lens model round-trips."""
+"""
+Footage that does not look like the renderer's (saw_ros.vision.scene).
+
+Clutter, lighting, lens distortion and compression are drawn as asked, and the camera's lens model
+round-trips.
+"""
 import math
 
 import numpy as np

@@ -64,9 +64,12 @@ def test_frames_without_markers_give_no_position(level_run):
 
 
 def test_front_and_back_keep_their_identity(level_run):
-    """The robot drives left to right through the picture; a mirrored camera (robot travelling
-    left) must not swap them, and a third pink blob near a marker is not taken for it (more in
-    test_vision_acquisition.py)."""
+    """
+    The robot drives left to right through the picture.
+
+    A mirrored camera (robot travelling left) must not swap them, and a third pink blob near a
+    marker is not taken for it (more in test_vision_acquisition.py).
+    """
     s = Scenario()
     cam = CameraModel(mirror=True, center_x=0.1)
     r = Renderer(s.robot, s.conditions.gap, cam)

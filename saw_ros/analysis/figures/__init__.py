@@ -1,4 +1,5 @@
-"""Reproduce the paper's figures and hold our model against its claims (issue 7).
+"""
+Reproduce the paper's figures and hold our model against its claims (issue 7).
 
 ``reproduce(out_dir)`` runs the sweeps (one batch of the vectorised core), writes one CSV and one
 PNG per figure into ``out_dir/figures`` and the fidelity report ``out_dir/fidelity.md``.

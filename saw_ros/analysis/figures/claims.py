@@ -1,4 +1,5 @@
-"""The paper's claims (``shared/docs/model.md`` section 10, ``worm-model.md``) held against ours.
+"""
+The paper's claims (``shared/docs/model.md`` section 10, ``worm-model.md``) held against ours.
 
 Each claim has the paper's value, ours, the tolerance and a verdict. Tolerances come from the
 paper's own wording, not from our numbers:

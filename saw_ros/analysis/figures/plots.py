@@ -1,4 +1,5 @@
-"""CSV tables, PNG figures (matplotlib, Agg) and the markdown fidelity report.
+"""
+CSV tables, PNG figures (matplotlib, Agg) and the markdown fidelity report.
 
 Human units on every axis and column: degrees, cm, cm/s, N/m, mm.
 """

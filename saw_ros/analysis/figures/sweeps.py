@@ -1,4 +1,5 @@
-"""The sweeps behind the paper's figures, computed with the batched core (no rclpy, no plotting).
+"""
+The sweeps behind the paper's figures, computed with the batched core (no rclpy, no plotting).
 
 Every wave point of every figure is gathered first, duplicates removed (the default case appears
 in Figures 9, 10, 11 and 21), and the lot is stepped as one batch by ``core.dynamics.simulate``.
@@ -87,8 +88,11 @@ class Data:
 
 def run_wave_batch(points: Sequence[Point], grid: Grid,
                    progress: Optional[Callable[[int], None]] = None) -> Dict[Point, float]:
-    """AR of every point, one batch; a batch that diverges is split until the culprit is alone
-    (its AR is then nan)."""
+    """
+    AR of every point, one batch.
+
+    A batch that diverges is split until the culprit is alone (its AR is then nan).
+    """
     if not points:
         return {}
     scenarios = [scenario_of(p) for p in points]
@@ -141,8 +145,11 @@ def worm_ar(slope_deg, kt, mu, model='closed_form') -> worm_model.WormResult:
 
 def compute(figures: Sequence[str] = FIGURES, quick: bool = False, progress=None,
             on_total: Optional[Callable[[int], None]] = None) -> Data:
-    """Run every sweep the requested figures need. ``on_total(n)`` is told the number of
-    scenario-steps first; ``progress(n)`` then counts them."""
+    """
+    Run every sweep the requested figures need.
+
+    ``on_total(n)`` is told the number of scenario-steps first; ``progress(n)`` then counts them.
+    """
     import time
     grid = QUICK if quick else FULL
     figures = tuple(f for f in FIGURES if f in set(figures))

@@ -1,4 +1,5 @@
-"""Inspect and record bags (rosbag2 directories with MCAP storage).
+"""
+Inspect and record bags (rosbag2 directories with MCAP storage).
 
   saw-ros bag info BAG        what ``ros2 bag info`` shows: files, size, duration, start/end,
                               messages, and per topic type, count, rate and serialisation;

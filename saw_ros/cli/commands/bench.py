@@ -1,4 +1,5 @@
-"""Measure the figures each issue names and print them (``--json``: one JSON object).
+"""
+Measure the figures each issue names and print them (``--json``: one JSON object).
 
 Every module in ``saw_ros/bench/`` contributes its keys; ``--only`` picks modules.
 Subprocess logs go to one folder per run (``--logs``, default ``out/bench_<date-time>/``,

@@ -1,7 +1,9 @@
-"""The paper's validation campaign: 20 conditions (slopes -20..20 deg x 4, 5, 6, 7 V, gap 45 mm)
-through simulation, virtual camera and tracker; a table (CSV, markdown), the mean relative error
-per voltage and overall, speed against slope and voltage with linear fits (Figure 17) and the AR
-comparison (Figure 18).
+"""
+The paper's validation campaign.
+
+20 conditions (slopes -20..20 deg x 4, 5, 6, 7 V, gap 45 mm) through simulation, virtual camera and
+tracker; a table (CSV, markdown), the mean relative error per voltage and overall, speed against
+slope and voltage with linear fits (Figure 17) and the AR comparison (Figure 18).
 
 examples:
   saw-ros campaign                                   # the paper's 20 conditions -> out/campaign

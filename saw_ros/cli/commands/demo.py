@@ -1,4 +1,5 @@
-"""The main job: the full ROS graph on the default scenario, then the comparison and a report.
+"""
+The main job: the full ROS graph on the default scenario, then the comparison and a report.
 
 Starts simulator, camera, vision, comparison and recorder as separate processes in a private DDS
 domain, runs about 10 s of simulated time, prints the comparison (AR of simulation and tracking,

@@ -1,4 +1,5 @@
-"""Regenerate the paper's figures from our model and hold it against the paper's claims.
+"""
+Regenerate the paper's figures from our model and hold it against the paper's claims.
 
 Writes one PNG and one CSV per figure into OUT/figures/ and the fidelity report OUT/fidelity.md
 (the paper's value, ours, the tolerance and the verdict for every claim). The committed copy

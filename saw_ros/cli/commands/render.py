@@ -1,4 +1,5 @@
-"""Simulate a run and render it, as the camera node would, to an .mp4 you can watch or track.
+"""
+Simulate a run and render it, as the camera node would, to an .mp4 you can watch or track.
 
 Example: saw-ros render run.mp4 --duration 6 --slope-deg 10 --noise 10 --exposure 0.0167
 then:    saw-ros track run.mp4 --px-per-m 1200 --slope-deg 10
@@ -19,8 +20,12 @@ HELP = 'simulate a run and render it to an .mp4 (the virtual camera, offline)'
 
 
 def spec_option(p, cls, name: str, flag: str = None) -> None:
-    """A --flag for dataclass field ``cls.name`` with its default, unit and description from the
-    field's spec() (the camera node's parameter of the same name reads the same one)."""
+    """
+    A --flag for dataclass field ``cls.name`` with its default.
+
+    Unit and description from the field's spec() (the camera node's parameter of the same name
+    reads the same one).
+    """
     (_, default, meta), = spec_entries(cls, (name,))
     unit = f", {meta['unit']}" if meta['unit'] else ''
     flag = flag or '--' + name.replace('_', '-')

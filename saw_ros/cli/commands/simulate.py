@@ -1,4 +1,5 @@
-"""Run one scenario of the physics core and print AR, v, v_theory and CCI convergence.
+"""
+Run one scenario of the physics core and print AR, v, v_theory and CCI convergence.
 
 Human-facing flags take degrees, mm and cm; everything inside is SI. Any model parameter can be
 set by its dotted name in SI units with --set (see `saw-ros simulate --list`).

@@ -1,5 +1,8 @@
-"""The paper's statics (Section 3, Eqs. 1-5, Figure 4): the minimal normal forces the surfaces
-must press with for the robot to climb, and the slope above which the top surface is needed.
+"""
+The paper's statics (Section 3, Eqs. 1-5, Figure 4).
+
+The minimal normal forces the surfaces must press with for the robot to climb, and the slope above
+which the top surface is needed.
 
 examples:
   saw-ros statics                              # Figure 4's cases A, B, C at 90 deg

@@ -1,4 +1,5 @@
-"""Track the two pink markers in a video file (a real robot's, or one the camera node wrote).
+"""
+Track the two pink markers in a video file (a real robot's, or one the camera node wrote).
 
 The scale is either measured (--px-per-m: pixels per metre in the plane of the robot's motion,
 e.g. on a ruler in the picture) or taken from the markers themselves (--marker-spacing-m: the
@@ -38,7 +39,7 @@ COLUMNS = ('frame', 't', 'status', 'front_x', 'front_y', 'back_x', 'back_y', 'x'
 
 
 def _numbers(kind, count=None):
-    """argparse type: comma-separated numbers (``count`` of them, or any of ``count``)."""
+    """Argparse type: comma-separated numbers (``count`` of them, or any of ``count``)."""
     def parse(text: str):
         try:
             values = tuple(kind(v) for v in text.split(','))
@@ -52,9 +53,12 @@ def _numbers(kind, count=None):
 
 
 def config_options():
-    """(field name, flag, argparse keywords) for every TrackerConfig field, from the field's
-    type, default, unit and description (its spec()): the command line, the vision node and the
-    dataclass cannot disagree."""
+    """
+    (field name, flag, argparse keywords) for every TrackerConfig field, from the field's type.
+
+    Default, unit and description (its spec()): the command line, the vision node and the dataclass
+    cannot disagree.
+    """
     hints = typing.get_type_hints(TrackerConfig)
     for f in dataclasses.fields(TrackerConfig):
         kind = hints[f.name]

@@ -1,4 +1,5 @@
-"""The camera node: a virtual 60 fps side-view camera of the simulated robot.
+"""
+The camera node: a virtual 60 fps side-view camera of the simulated robot.
 
 Subscribes /saw/pose (PoseStamped) and /saw/joint_states (JointState, ``helix`` = wave phase) and
 renders one frame for every 1/fps s of SIMULATED time, stamped with that time: frame k is drawn
@@ -265,12 +266,15 @@ class CameraNode(Node):
                     self._output_error = exc
 
     def _follow(self, t_ns: int) -> None:
-        """A camera on a rail along the track: when a marker comes within ``follow_margin``
-        of the picture's edge, move by ``follow_step`` (or onto the robot's
-        COM, to the mm) along the surfaces. The images from then on are the moved camera's;
-        their CameraInfo is the fixed camera's with the principal point shifted by the move
-        (cx - scale d cos(slope), cy + scale d sin(slope)): with the same ``center_x`` a reader
-        keeps metric positions continuous."""
+        """
+        A camera on a rail along the track.
+
+        When a marker comes within ``follow_margin`` of the picture's edge, move by ``follow_step``
+        (or onto the robot's COM, to the mm) along the surfaces. The images from then on are the
+        moved camera's; their CameraInfo is the fixed camera's with the principal point shifted by
+        the move (cx - scale d cos(slope), cy + scale d sin(slope)): with the same ``center_x`` a
+        reader keeps metric positions continuous.
+        """
         cam = self.camera
         pose = self.pose_at(t_ns)
         m = self.follow_margin * min(cam.width, cam.height)
@@ -295,8 +299,12 @@ class CameraNode(Node):
                                f't = {t_ns / NS_PER_S:.3f} s (offset {self.offset:.3f} m)')
 
     def _publish(self, frame, t_ns: int, info: CameraInfo = None) -> None:
-        """Publish image and camera info, then add the frame to the video (even when publishing
-        failed: after Ctrl-C the context is gone but the video still gets every frame)."""
+        """
+        Publish image and camera info, then add the frame to the video.
+
+        (even when publishing failed: after Ctrl-C the context is gone but the video still gets
+        every frame).
+        """
         t0 = time.perf_counter()
         try:
             info = info or self.info

@@ -1,4 +1,5 @@
-"""The comparison node: AR of the simulation against AR of the tracking (paper Figure 18).
+"""
+The comparison node: AR of the simulation against AR of the tracking (paper Figure 18).
 
 Subscribes to the simulator's ground truth (/saw/pose, raw) and to the tracker's estimate
 (/saw/tracking/pose). Waits for steady state (CCI of the true forward velocity under
@@ -97,8 +98,11 @@ def _check_positive(name, value) -> None:
 
 
 def read_reference(path: str):
-    """The reference points of ``path`` ('' = none); NodeFailure with a one-line reason if the
-    file is missing or does not parse."""
+    """
+    The reference points of ``path`` ('' = none).
+
+    NodeFailure with a one-line reason if the file is missing or does not parse.
+    """
     if not path:
         return []
     try:

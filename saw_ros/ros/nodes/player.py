@@ -1,4 +1,5 @@
-"""Node ``player``: play a bag back onto its topics, as ``ros2 bag play --clock`` would.
+"""
+Node ``player``: play a bag back onto its topics, as ``ros2 bag play --clock`` would.
 
 Parameters
   bag                  string    bag directory (or .mcap file); required
@@ -180,8 +181,12 @@ class Player(Node):
 
 
     def start_services(self) -> None:
-        """Serve the parameter services (and the rest of the node's callbacks) from a thread
-        while play() publishes: a `ros2 param set` then gets its answer (refused: read-only)."""
+        """
+        Serve the parameter services.
+
+        (and the rest of the node's callbacks) from a thread while play() publishes: a `ros2 param
+        set` then gets its answer (refused: read-only).
+        """
         from rclpy.executors import SingleThreadedExecutor
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self)

@@ -1,4 +1,5 @@
-"""Node ``recorder``: record topics into a rosbag2 bag (MCAP storage) as ``ros2 bag record`` would.
+"""
+Node ``recorder``: record topics into a rosbag2 bag (MCAP storage) as ``ros2 bag record`` would.
 
 Parameters
   topics      string[]  topics to record; empty: ``msg_config/record_topics.yaml`` (every topic of
@@ -87,8 +88,11 @@ LARGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
 
 
 def default_topics():
-    """(topics, prefixes) from msg_config/record_topics.yaml (source tree or installed share, as
-    config_path finds it: no ament index needed)."""
+    """
+    (topics, prefixes) from msg_config/record_topics.yaml.
+
+    (source tree or installed share, as config_path finds it: no ament index needed).
+    """
     from saw_ros.interface.config import config_path
     path = config_path('record_topics.yaml')
     if path.is_file():
@@ -99,8 +103,11 @@ def default_topics():
 
 
 def default_excluded() -> List[str]:
-    """The ``exclude`` list of msg_config/record_topics.yaml (topics under a prefix that the
-    recorder leaves out by default)."""
+    """
+    The ``exclude`` list of msg_config/record_topics.yaml.
+
+    (topics under a prefix that the recorder leaves out by default).
+    """
     from saw_ros.interface.config import config_path
     try:
         with open(config_path('record_topics.yaml'), encoding='utf-8') as f:
@@ -115,7 +122,8 @@ def default_output(bags_dir: str, label: str) -> str:
 
 
 class LossCounter:
-    """Messages lost per topic, from gaps in the publication sequence numbers of what arrives.
+    """
+    Messages lost per topic, from gaps in the publication sequence numbers of what arrives.
 
     A publisher numbers its messages 1, 2, 3... (the DDS writer's sequence number, in rclpy's
     message info as ``publication_sequence_number``). Without the publisher's GID (not in
@@ -189,8 +197,12 @@ def offered_profile(qos) -> dict:
 
 
 def request_qos(offers: List, depth: int) -> QoSProfile:
-    """rosbag2's adapt_request_to_offers: reliable / transient_local only if every publisher
-    offers it, so that the subscription connects to all of them."""
+    """
+    rosbag2's adapt_request_to_offers.
+
+    Reliable / transient_local only if every publisher offers it, so that the subscription connects
+    to all of them.
+    """
     reliable = bool(offers) and all(q.reliability == ReliabilityPolicy.RELIABLE for q in offers)
     latched = bool(offers) and all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL
                                    for q in offers)
@@ -288,8 +300,11 @@ class Recorder(Node):
         self._report_matched()
 
     def _report_matched(self) -> None:
-        """Log 'recording <topic>' once the subscription has matched a publisher: from then on
-        nothing published on it is missed (scripts and tests wait for this line)."""
+        """
+        Log 'recording <topic>' once the subscription has matched a publisher.
+
+        From then on nothing published on it is missed (scripts and tests wait for this line).
+        """
         for name, (type_name, since) in list(self._unmatched.items()):
             holder = self._subs.get(name)
             if holder is None or holder['sub'].get_publisher_count() < 1:
@@ -384,8 +399,11 @@ class Recorder(Node):
                 self._write_error = exc
 
     def close(self) -> None:
-        """Finish the bag: drain subscriptions, let the writer thread empty its queue, write
-        the summary and metadata.yaml. Idempotent."""
+        """
+        Finish the bag: drain subscriptions, let the writer thread empty its queue.
+
+        Write the summary and metadata.yaml. Idempotent.
+        """
         if self._closed:
             return
         self._closed = True

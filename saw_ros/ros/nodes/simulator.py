@@ -1,4 +1,5 @@
-"""The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time.
+"""
+The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time.
 
 Steps ``core.Simulator`` and publishes every step exactly once (stamps = simulated time, 1 ms
 apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts, /saw/contact_wrench and
@@ -263,15 +264,22 @@ class SimulatorNode(Node):
                                                   rates, ns))
 
     def close(self) -> None:
-        """Say how many steps went out (every topic got each of them once; tests compare with
-        recordings). run_node then waits for subscribers to acknowledge them (common.flush)."""
+        """
+        Say how many steps went out.
+
+        (every topic got each of them once; tests compare with recordings). run_node then waits for
+        subscribers to acknowledge them (common.flush).
+        """
         self.get_logger().info(f'stopped after {self.steps} steps (t = '
                                f'{self.steps * self.dt:.3f} s)')
 
 
 def spin(node: SimulatorNode) -> None:
-    """Spin until stopped (SIGINT, SIGTERM: between two batches of steps, never inside one) or,
-    with ``duration`` set, until the run is complete."""
+    """
+    Spin until stopped (SIGINT, SIGTERM: between two batches of steps, never inside one) or.
+
+    With ``duration`` set, until the run is complete.
+    """
     from rclpy.executors import SingleThreadedExecutor
     spin_node(node, until=lambda: node.finished,
               executor=SingleThreadedExecutor(context=node.context))

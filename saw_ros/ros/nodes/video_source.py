@@ -1,4 +1,5 @@
-"""The video source node: recorded footage as a camera stream.
+"""
+The video source node: recorded footage as a camera stream.
 
 Publishes a video file (anything OpenCV reads), or a folder of frame images (sorted by name), as
 sensor_msgs/Image (bgr8) plus sensor_msgs/CameraInfo on the camera node's topics
@@ -64,8 +65,11 @@ PARAMETERS = (
 
 
 class FrameSource:
-    """Frames (BGR uint8) of a video file or of a folder of images, in order; checked at open:
-    the first frame must decode."""
+    """
+    Frames (BGR uint8) of a video file or of a folder of images, in order.
+
+    Checked at open: the first frame must decode.
+    """
 
     def __init__(self, path: str, fps: float = 0.0):
         self.path = os.fspath(path)
@@ -139,8 +143,12 @@ class FrameSource:
 
 def camera_info(width: int, height: int, frame_id: str, px_per_m: float = 0.0,
                 distance: float = 1.0, camera_matrix=None) -> CameraInfo:
-    """CameraInfo of the footage: K from the calibration, or f = px_per_m * distance with the
-    principal point at the image centre (the camera node's convention), or zero."""
+    """
+    CameraInfo of the footage.
+
+    K from the calibration, or f = px_per_m * distance with the principal point at the image centre
+    (the camera node's convention), or zero.
+    """
     if camera_matrix:
         fx, fy, cx, cy = (float(v) for v in camera_matrix)
     elif px_per_m > 0:
@@ -229,8 +237,11 @@ class VideoSourceNode(Node):
             self.sent += 1
 
     def _subscribers_ready(self) -> bool:
-        """``wait_for_subscribers`` image subscribers matched, and as many camera-info ones
-        (or INFO_GRACE s passed since the images matched: a reader with px_per_m takes none)."""
+        """
+        ``wait_for_subscribers`` image subscribers matched, and as many camera-info ones.
+
+        (or INFO_GRACE s passed since the images matched: a reader with px_per_m takes none).
+        """
         n = int(self.p['wait_for_subscribers'])
         if self._pub_image.get_subscription_count() < n:
             return False

@@ -1,4 +1,5 @@
-"""The vision node: the two-pink-marker tracker on any image stream.
+"""
+The vision node: the two-pink-marker tracker on any image stream.
 
 Subscribes an Image stream (bgr8 or rgb8) and, unless ``px_per_m`` is given, its CameraInfo
 (px per metre = K's focal length / ``plane_distance``). Per frame, stamped with the image's stamp,
@@ -80,8 +81,12 @@ def yaml_file() -> str:
 
 
 def image_to_array(msg):
-    """(H x W x 3 uint8 view, encoding) of a bgr8/rgb8 Image (or a ``cdr.ImageView`` of its
-    bytes: then a view of the message buffer, no copy); ValueError otherwise."""
+    """
+    (H x W x 3 uint8 view, encoding) of a bgr8/rgb8 Image.
+
+    (or a ``cdr.ImageView`` of its bytes: then a view of the message buffer, no copy); ValueError
+    otherwise.
+    """
     if msg.encoding not in ('bgr8', 'rgb8'):
         raise ValueError(f'unsupported image encoding {msg.encoding!r}: bgr8 or rgb8 only')
     h, w, step = msg.height, msg.width, msg.step
