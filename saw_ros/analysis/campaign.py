@@ -11,14 +11,14 @@ No rclpy import.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import asdict, dataclass
+import math
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
+from saw_ros.analysis.compare import find_reference, load_reference, reference_error, RunComparator
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.dynamics import fork_map
 

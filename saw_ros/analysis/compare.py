@@ -14,8 +14,8 @@ tracked one by interpolating its 60 Hz positions at the window's ends.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass
+import math
 from pathlib import Path
 from typing import List, Optional
 

@@ -26,8 +26,8 @@ No rclpy import.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass, field
+import math
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 

@@ -16,18 +16,18 @@ Two kinds of trouble are told apart:
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import glob
 import io
 import os
 import struct
-import zlib
-from dataclasses import dataclass, field
 from typing import Dict, Iterable, Iterator, List, Optional
+import zlib
 
-import yaml
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.records import Channel, ChunkIndex, Schema, Statistics
+import yaml
 
 MAGIC = b'\x89MCAP0\r\n'
 _RECORD = struct.Struct('<BQ')            # opcode, body length

@@ -33,16 +33,15 @@ Not thread-safe: one thread writes (the recorder gives it a thread of its own).
 from __future__ import annotations
 
 import bisect
+from collections import deque
 import os
 import threading
 import time
-from collections import deque
 from typing import Dict, List, Optional
 
-import yaml
 from mcap.writer import CompressionType, Writer
-
 from saw_ros.bag.schema import message_definition, type_hash
+import yaml
 
 # rosbag2's MCAP default (mcap::McapWriterOptions: 768 KiB chunks, zstd).
 DEFAULT_CHUNK_SIZE = 768 * 1024

@@ -10,9 +10,9 @@ variable ``SAW_BENCH_LOGS`` choose another), printed on stderr when first used. 
 that does not finish in time is a failed rung (its log says where it stood), never a crash.
 """
 import os
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 LOGS_ENV = 'SAW_BENCH_LOGS'
 _announced = []

@@ -19,10 +19,9 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
-
 from saw_ros.ros.qos import CLOCK_QOS, IMAGE_QOS, PUBLISHER_DEPTH, STREAM_QOS, with_depth
 from saw_ros.ros.runtime import run_node
+from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
 
 # Images: 2 s at 60 fps, longer than the bursts this node publishes to catch up after being
 # descheduled (a KEEP_LAST writer overwrites unacknowledged samples; docs/measurements.md).

@@ -39,10 +39,10 @@ from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
 import shutil
 import sys
 import time
-from pathlib import Path
 from typing import Dict, List, Optional
 
 from saw_ros.interface import topics

@@ -11,10 +11,10 @@ whose processes do not finish in time, or whose bag cannot be read, fails (the l
 there; at the default load the figures are None), never crashes the bench.
 """
 import os
+from pathlib import Path
 import shutil
 import subprocess
 import time
-from pathlib import Path
 
 KEYS = ('recorder_max_msgs_per_s', 'recorder_lost_messages', 'recorder_cpu_share',
         'recorder_default_load_msgs_per_s')

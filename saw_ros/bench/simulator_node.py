@@ -24,11 +24,11 @@ simulator's messages were counted as ours and kept the subscriber alive past the
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 KEYS = ('sim_max_realtime_factor', 'sim_lost_messages')
 SUBSCRIBER_DEPTH = 1000     # 1 s at 1 kHz: rides out the scheduling hiccups of a shared machine

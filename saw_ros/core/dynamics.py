@@ -13,15 +13,15 @@ S scenarios that share one robot geometry and time step are stepped together as 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import functools
 import math
-from dataclasses import dataclass
 from typing import Callable, Iterator, Optional, Sequence, Union
 
 import numpy as np
 
-from saw_ros.core.contact import ContactLaw, ContactState, contact_step
-from saw_ros.core.kinematics import TipTable, check_no_interference
+from saw_ros.core.contact import contact_step, ContactLaw, ContactState
+from saw_ros.core.kinematics import check_no_interference, TipTable
 from saw_ros.core.params import ParameterError, RobotParams, Scenario
 
 GRAVITY = 9.81  # m/s^2

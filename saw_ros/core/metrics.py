@@ -12,8 +12,8 @@ does not say).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 from typing import Optional
 
 import numpy as np

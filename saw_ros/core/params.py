@@ -12,8 +12,8 @@ choices we made where the paper is silent).
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
+import math
 from typing import Any, Dict, Iterable, Iterator, Optional, Tuple
 
 

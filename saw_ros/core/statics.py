@@ -13,8 +13,8 @@ units of m g when ``weight`` is 1 (the paper's Figure 4 axis).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 import numpy as np
 

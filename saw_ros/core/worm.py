@@ -37,8 +37,8 @@ opposes it and pushes the robot back, more so at a higher COF. Two models follow
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 from typing import Optional
 
 import numpy as np

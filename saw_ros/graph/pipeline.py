@@ -9,15 +9,15 @@ simulator reaches its duration and the comparison node has published its final s
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import json
 import math
-import time
-from dataclasses import dataclass, field
 from pathlib import Path
+import time
 from typing import Dict, List, Optional
 
+from saw_ros.graph.process import isolated_ros_env, ManagedProcess, node_command
 from saw_ros.interface import topics
-from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command
 
 
 MATCH_TIMEOUT = 20.0     # s; then the run goes on anyway (and the bench reports what was lost)

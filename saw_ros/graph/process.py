@@ -12,13 +12,13 @@ from __future__ import annotations
 import collections
 import fcntl
 import os
+from pathlib import Path
 import random
 import signal
 import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 from typing import Callable, Dict, List, Optional, Sequence
 
 

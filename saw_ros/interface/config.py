@@ -11,9 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Dict, Optional
 
-import yaml
-
 from saw_ros.core.params import ParameterError, Scenario
+import yaml
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / 'msg_config'
 

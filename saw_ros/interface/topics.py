@@ -11,8 +11,8 @@ the README's topic table is checked against it (tests/interface/test_topics.py).
 """
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
+import sys
 from typing import List, Tuple
 
 

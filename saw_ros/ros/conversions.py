@@ -16,12 +16,11 @@ import math
 import struct
 from typing import Optional, Sequence
 
-import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TwistStamped
+import numpy as np
+from saw_ros.ros.cdr import CdrWriter, ENCAPSULATION, NS_PER_S
 from sensor_msgs.msg import PointCloud2, PointField
-
-from saw_ros.ros.cdr import ENCAPSULATION, NS_PER_S, CdrWriter
 
 SURFACE_FRAME = 'surface'
 BODY_FRAME = 'base_link'

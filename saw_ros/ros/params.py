@@ -21,7 +21,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 ParameterType, SetParametersResult)
 from rclpy.parameter import Parameter
 
-from saw_ros.core.params import ParameterError, Scenario, range_text
+from saw_ros.core.params import ParameterError, range_text, Scenario
 
 
 _TYPES = ((bool, ParameterType.PARAMETER_BOOL), (int, ParameterType.PARAMETER_INTEGER),

@@ -18,9 +18,8 @@ import time
 from typing import Callable, List, Optional
 
 # The QoS profiles live in saw_ros.ros.qos; importable from here for older importers.
-from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, IMAGE_QOS,  # noqa: F401
-                             INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, image_publisher_qos,
-                             with_depth)
+from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, image_publisher_qos, IMAGE_QOS,
+                             INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth)
 
 
 # s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.

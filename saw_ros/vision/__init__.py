@@ -8,7 +8,7 @@ for tests and benchmarks; the only module here that imports the simulation core)
 """
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import Renderer, RenderOptions, RobotPose
-from saw_ros.vision.tracker import FrameResult, Tracker, TrackerConfig, detect
+from saw_ros.vision.tracker import detect, FrameResult, Tracker, TrackerConfig
 
 __all__ = ['CameraModel', 'FrameResult', 'Renderer', 'RenderOptions', 'RobotPose', 'Tracker',
            'TrackerConfig', 'detect']

@@ -27,12 +27,11 @@ The renderer draws the ideal image and warps it; the tracker undistorts its mark
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
+import math
 from typing import Optional, Tuple
 
 import cv2
-
 import numpy as np
 
 from saw_ros.core.params import spec

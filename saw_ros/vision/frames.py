@@ -25,18 +25,17 @@ sensor noise). Order: draw (blur) -> brightness and lighting -> lens -> noise ->
 from __future__ import annotations
 
 import bisect
-import math
 from dataclasses import dataclass
+import math
 from typing import Callable, Iterable, List, NamedTuple, Optional, Sequence
 
 import cv2
 import numpy as np
 
-from saw_ros.core.kinematics import (PhaseTable, base_link_end, cycle_phases, hinge_x,
-                                     link_geometry)
+from saw_ros.core.kinematics import base_link_end, cycle_phases, hinge_x, link_geometry, PhaseTable
 from saw_ros.core.params import RobotParams, spec
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.scene import SceneOptions, distortion_maps, draw_clutter, gradient_map, jpeg
+from saw_ros.vision.scene import distortion_maps, draw_clutter, gradient_map, jpeg, SceneOptions
 
 SHIFT = 4                       # fixed-point bits for cv2 sub-pixel vertices
 ONE = 1 << SHIFT

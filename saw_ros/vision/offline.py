@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.tracker import Tracker, TrackerConfig, scale_from_spacing
+from saw_ros.vision.tracker import scale_from_spacing, Tracker, TrackerConfig
 from saw_ros.vision.video import read_frames, video_info
 
 SCALE_FRAMES = 120      # ok frames the first pass measures the marker spacing on

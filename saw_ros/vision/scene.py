@@ -17,8 +17,8 @@ camera's (``CameraModel.dist_coeffs``): the renderer draws the ideal image and w
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 from typing import Iterable, Tuple
 
 import cv2

@@ -8,20 +8,20 @@ noise, blur, lens distortion and compression.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 import os
 import tempfile
-from dataclasses import dataclass
 from typing import Callable, Iterable, Iterator, List, Optional, Tuple
 
 import numpy as np
 
 from saw_ros.core import Scenario, simulate
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.frames import Renderer, RenderOptions, RobotPose, pose_interpolator
-from saw_ros.vision.scene import (HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, Clutter, SceneOptions)
+from saw_ros.vision.frames import pose_interpolator, Renderer, RenderOptions, RobotPose
+from saw_ros.vision.scene import Clutter, HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, SceneOptions
 from saw_ros.vision.tracker import FrameResult, Tracker, TrackerConfig
-from saw_ros.vision.video import VideoWriter, read_frames
+from saw_ros.vision.video import read_frames, VideoWriter
 
 
 @dataclass

@@ -66,10 +66,10 @@ colour, spacing and the robot's line tell it from a marker.
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass
 from enum import StrEnum
+import math
 from typing import Deque, Dict, List, Optional, Tuple
 
 import cv2

@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from saw_ros.analysis.campaign import linear_fit, summarise, run_campaign
+from saw_ros.analysis.campaign import linear_fit, run_campaign, summarise
 
 
 def test_linear_fit_recovers_a_line_and_its_r2():

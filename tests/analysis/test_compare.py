@@ -3,9 +3,9 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
-from saw_ros.interface.config import config_path
+from saw_ros.analysis.compare import find_reference, load_reference, reference_error, RunComparator
 from saw_ros.core import RobotParams, Scenario, simulate
+from saw_ros.interface.config import config_path
 
 ROBOT = RobotParams()
 

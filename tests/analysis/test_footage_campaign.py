@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from saw_ros.analysis.footage import ManifestError, TARGET_COLUMNS, load_manifest
+from saw_ros.analysis.footage import load_manifest, ManifestError, TARGET_COLUMNS
 from saw_ros.cli.main import main
 
 SAMPLES = Path(__file__).resolve().parents[2] / 'samples' / 'footage' / 'manifest.csv'

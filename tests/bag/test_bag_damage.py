@@ -9,9 +9,9 @@ import os
 import shutil
 import struct
 
-import pytest
 from mcap.reader import make_reader
 from mcap_ros2._dynamic import serialize_dynamic
+import pytest
 
 from saw_ros.bag import BagReader, BagWriter, qos_profile_dict
 from saw_ros.bag.reader import BagDamagedError, BagDecodeError, BagReadError, stamp

@@ -3,15 +3,14 @@ import json
 import os
 import stat
 
-import pytest
-import yaml
 from mcap.reader import make_reader
 from mcap_ros2._dynamic import serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory
-
+import pytest
 from saw_ros.bag import BagExistsError, BagReader, BagWriteError, BagWriter, qos_profile_dict
 from saw_ros.bag.schema import message_definition, type_hash
 from saw_ros.interface.share import share_file
+import yaml
 
 POSE = 'geometry_msgs/msg/PoseStamped'
 DELIM = '=' * 80 + '\n'

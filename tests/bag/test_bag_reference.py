@@ -1,10 +1,10 @@
 """The reference recordings kept in git are complete rosbag2 bags."""
 import os
 
-import pytest
 from mcap.reader import make_reader
 from mcap.records import Message
 from mcap.stream_reader import StreamReader
+import pytest
 
 from saw_ros.bag import BagReader
 

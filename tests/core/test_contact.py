@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from saw_ros.core.contact import ContactLaw, ContactState, contact_step, hysteresis_factor
+from saw_ros.core.contact import contact_step, ContactLaw, ContactState, hysteresis_factor
 
 KN, KT, MU, E, V0, DT = 15500.0, 1082.0, 0.8, 0.9, 0.01, 1e-3
 

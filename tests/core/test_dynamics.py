@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.core import DivergenceError, Scenario, Simulator, simulate
+from saw_ros.core import DivergenceError, Scenario, simulate, Simulator
 from saw_ros.core.dynamics import GRAVITY
 from saw_ros.core.metrics import analyse
 from saw_ros.core.params import ParameterError

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from saw_ros.core import ParameterError, RobotParams
-from saw_ros.core.kinematics import (TipTable, backbone, base_link_angle, check_no_interference,
-                                     interference, link_geometry, v_theory)
+from saw_ros.core.kinematics import (backbone, base_link_angle, check_no_interference,
+                                     interference, link_geometry, TipTable, v_theory)
 
 ROBOT = RobotParams()
 PHASES = np.linspace(0, 2 * np.pi, 721)

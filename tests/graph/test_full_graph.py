@@ -6,12 +6,12 @@ the same condition: the same numbers.
 """
 import math
 
+from diagnostic_msgs.msg import DiagnosticArray
 import pytest
 from rclpy.serialization import deserialize_message
-from diagnostic_msgs.msg import DiagnosticArray
 
-from saw_ros.bag.reader import BagReader
 from saw_ros.analysis.campaign import run_campaign
+from saw_ros.bag.reader import BagReader
 from saw_ros.graph.pipeline import run_pipeline
 from saw_ros.interface import topics
 

@@ -3,12 +3,11 @@ The topic table (saw_ros/interface/topics.py) is the one source.
 
 The generated msg_config/record_topics.yaml and the README's topic table agree with it.
 """
-import re
 from pathlib import Path
-
-import yaml
+import re
 
 from saw_ros.interface import topics
+import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 

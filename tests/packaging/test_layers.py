@@ -1,8 +1,8 @@
 """The tree's layers: imports point down only, and the pure layers never load rclpy."""
 import ast
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 

@@ -7,17 +7,17 @@ packages themselves, without AMENT_PREFIX_PATH (a shell with only `source .venv/
 can be found, the recorder refuses before creating anything, with one line saying what to source.
 """
 import os
+from pathlib import Path
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import pytest
 
-from saw_ros.interface import share
 from saw_ros.bag import BagReader
 from saw_ros.bag import schema
-from saw_ros.graph.process import ManagedProcess, isolated_ros_env, node_command, wait_for
+from saw_ros.graph.process import isolated_ros_env, ManagedProcess, node_command, wait_for
+from saw_ros.interface import share
 
 
 def without_ament(env=None):

@@ -9,13 +9,13 @@ Tests that only make sense in one layout skip with the reason in the other. None
 source tree. Also: package.xml format 3, setup.py's test requirement, the shared config.
 """
 import os
+from pathlib import Path
 import re
 import runpy
 import subprocess
 import sys
-import xml.etree.ElementTree as ET
-from pathlib import Path
 from unittest import mock
+import xml.etree.ElementTree as ET
 
 import pytest
 

@@ -10,14 +10,14 @@ import os
 import numpy as np
 import pytest
 
-from saw_ros.ros import cdr
-from saw_ros.bag import BagReader
 from saw_ros.analysis.compare import RunComparator
+from saw_ros.bag import BagReader
 from saw_ros.core import Scenario
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+from saw_ros.interface import topics as table
+from saw_ros.ros import cdr
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker
-from saw_ros.interface import topics as table
 
 BAG = os.path.join(os.path.dirname(__file__), '..', '..', 'bags', 'reference_camera')
 IMAGE, INFO, POSE = table.IMAGE, table.CAMERA_INFO, table.POSE

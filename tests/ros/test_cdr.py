@@ -1,15 +1,14 @@
 """CDR readers and writers of saw_ros.ros.cdr against rclpy's own serialisation."""
 import math
 
+from geometry_msgs.msg import PoseStamped
 import numpy as np
 import pytest
-from geometry_msgs.msg import PoseStamped
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Image, JointState
-
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
+from sensor_msgs.msg import Image, JointState
 
 
 def _joint_state(names, positions, ns, frame=''):

@@ -11,16 +11,16 @@ import os
 import signal
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
 
 from saw_ros.bag.reader import BagReader
-from saw_ros.ros.cdr import stamp_ns
-from saw_ros.ros.nodes.simulator import TOPICS as SIM_TOPICS
 from saw_ros.graph.pipeline import RECORDED_TOPICS
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.interface import topics as table
+from saw_ros.ros.cdr import stamp_ns
+from saw_ros.ros.nodes.simulator import TOPICS as SIM_TOPICS
 
 pytestmark = pytest.mark.ros
 

@@ -7,18 +7,18 @@ Simulator node + a stand-in tracker (98 % of the true position, 60 Hz of simulat
 import json
 import math
 
-import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
+import pytest
+import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.metrics import analyse
-from saw_ros.ros.qos import LATCHED_QOS, STREAM_QOS
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.interface import topics as table
+from saw_ros.ros.qos import LATCHED_QOS, STREAM_QOS
 
 pytestmark = pytest.mark.ros
 

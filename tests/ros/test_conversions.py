@@ -3,16 +3,15 @@ import array
 import math
 from typing import Optional, Sequence
 
+from geometry_msgs.msg import WrenchStamped
 import numpy as np
 import pytest
-from geometry_msgs.msg import WrenchStamped
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, PointCloud2, PointField
-
-from saw_ros.ros import conversions as conv
-from saw_ros.core import Scenario, Simulator, link_geometry
+from saw_ros.core import link_geometry, Scenario, Simulator
 from saw_ros.core.kinematics import JointTable
+from saw_ros.ros import conversions as conv
+from sensor_msgs.msg import JointState, PointCloud2, PointField
 
 
 # -- rclpy message builders: the reference every CDR encoder below is checked against ---------

@@ -3,9 +3,8 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # noqa: E402
-
-from saw_ros.ros.ready import READY_KEY, main, ready_nodes  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # noqa: E402, I100
+from saw_ros.ros.ready import main, READY_KEY, ready_nodes  # noqa: E402
 
 
 def status(name, level=DiagnosticStatus.OK, value='true'):

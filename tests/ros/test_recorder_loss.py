@@ -10,11 +10,10 @@ import re
 import signal
 
 import pytest
-import yaml
-
 from saw_ros.bag import BagReader
-from saw_ros.ros.nodes.recorder import LossCounter
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+from saw_ros.ros.nodes.recorder import LossCounter
+import yaml
 
 
 def test_loss_counter_counts_gaps_per_publisher():

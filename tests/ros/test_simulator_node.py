@@ -15,18 +15,17 @@ from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from std_srvs.srv import Trigger
-
-from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator
 from saw_ros.core.dynamics import GRAVITY
 from saw_ros.core.kinematics import v_theory
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+from saw_ros.ros import conversions as conv
+from std_srvs.srv import Trigger
 
 pytestmark = pytest.mark.ros
 
+from saw_ros.interface import topics as table  # noqa: E402, I100
 from saw_ros.ros.nodes.simulator import TOPICS  # noqa: E402  (topic -> message class)
-from saw_ros.interface import topics as table  # noqa: E402
 
 MS = 1_000_000
 # Real time: 6000 messages/s, which one raw subscriber keeps up with on a shared 2-core machine.

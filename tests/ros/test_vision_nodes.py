@@ -7,11 +7,11 @@ import math
 
 import pytest
 
-from saw_ros.ros import conversions as conv
 from saw_ros.core import Scenario, Simulator
 from saw_ros.graph.process import wait_for
-from saw_ros.vision.tracker import TrackerConfig
 from saw_ros.interface import topics as table
+from saw_ros.ros import conversions as conv
+from saw_ros.vision.tracker import TrackerConfig
 
 STEADY = 2.0          # s, steady window for this short run
 DURATION = 4.6        # s of simulated time

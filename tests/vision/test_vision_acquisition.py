@@ -11,14 +11,14 @@ import cv2
 import numpy as np
 import pytest
 
-from saw_ros.cli.main import main
 from saw_ros.cli.commands import track
+from saw_ros.cli.main import main
 from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import Renderer, RenderOptions
-from saw_ros.vision.scene import ORANGE_RED, Clutter, SceneOptions
+from saw_ros.vision.scene import Clutter, ORANGE_RED, SceneOptions
 from saw_ros.vision.synthetic import (evaluate, frames, hard_footage, simulate_run)
-from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus, detect
+from saw_ros.vision.tracker import detect, Tracker, TrackerConfig, TrackStatus
 from saw_ros.vision.video import VideoWriter
 
 SPACING = 0.32                  # m, the renderer's markers

@@ -12,7 +12,7 @@ import pytest
 from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import PINK, Renderer, RenderOptions, RobotPose
-from saw_ros.vision.scene import HOT_PINK, ORANGE_RED, Clutter, SceneOptions
+from saw_ros.vision.scene import Clutter, HOT_PINK, ORANGE_RED, SceneOptions
 from saw_ros.vision.tracker import detect
 
 POSE = RobotPose(0.05, 0.0225, math.radians(1.5), 1.0)

@@ -7,9 +7,9 @@ No rclpy here: the figures need only the numpy core and matplotlib (Agg).
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from pathlib import Path
+import time
 from typing import Dict, List, Optional, Sequence
 
 from saw_ros.analysis.figures import claims as claims_mod

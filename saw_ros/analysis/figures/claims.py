@@ -16,17 +16,17 @@ A claim that is not held keeps its verdict; ``why`` says what we believe causes 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import functools
 import math
-from dataclasses import dataclass
 from typing import List, Optional
 
 import numpy as np
 
+from saw_ros.analysis.figures import sweeps
+from saw_ros.analysis.figures.sweeps import COFS, Data, DEFAULT_KT, FIG10_SLOPES, FIG21_KT, GAPS_MM
 from saw_ros.core import worm as worm_model
 from saw_ros.core.statics import minimal_normal_forces, top_surface_needed_above
-from saw_ros.analysis.figures import sweeps
-from saw_ros.analysis.figures.sweeps import COFS, DEFAULT_KT, FIG10_SLOPES, FIG21_KT, GAPS_MM, Data
 
 AR_REL_TOL = 0.10
 MARGINAL_DROP = (0.72 - 0.61) / 0.72      # 15.3 %: the paper's own "marginal" decrease

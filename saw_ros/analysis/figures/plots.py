@@ -13,10 +13,10 @@ from typing import List
 
 import numpy as np
 
-from saw_ros.core import worm as worm_model
 from saw_ros.analysis.figures import sweeps
-from saw_ros.analysis.figures.claims import Claim, _contact_law_zero_stiffness
-from saw_ros.analysis.figures.sweeps import COFS, DEFAULT_KT, FIG10_SLOPES, FIG21_KT, GAPS_MM, Data
+from saw_ros.analysis.figures.claims import _contact_law_zero_stiffness, Claim
+from saw_ros.analysis.figures.sweeps import COFS, Data, DEFAULT_KT, FIG10_SLOPES, FIG21_KT, GAPS_MM
+from saw_ros.core import worm as worm_model
 
 DPI = 100
 

@@ -7,8 +7,8 @@ The worm points are closed-form or quasi-static and cost nothing.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+import math
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np

@@ -17,6 +17,7 @@ import datetime
 import os
 import subprocess
 import sys
+
 from saw_ros.cli.errors import UserError
 
 HELP = 'bag info / record / play (rosbag2-compatible MCAP bags)'

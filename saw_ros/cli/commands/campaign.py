@@ -13,14 +13,14 @@ examples:
       # your robot's footage: one row per run (video, slope_deg, voltage_V or frequency_hz,
       # px_per_m or marker_spacing_m, notes); each video tracked, the condition simulated
 """
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 from saw_ros.analysis.campaign import PAPER_SLOPES_DEG, PAPER_VOLTAGES, run_campaign, summarise, write_outputs
-from saw_ros.interface.config import config_path
-from saw_ros.core.params import ParameterError
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
+from saw_ros.core.params import ParameterError
+from saw_ros.interface.config import config_path
 
 HELP = "run the paper's 20-condition validation campaign (simulation, camera, tracker)"
 

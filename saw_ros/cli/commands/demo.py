@@ -8,13 +8,13 @@ comparison.json, camera.mp4, the nodes' logs) in the output folder it names. The
 the raw camera frames (camera.mp4 has them). Ctrl-C stops every
 process it started. Exit code 1 if any node failed.
 """
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
-from saw_ros.interface.config import config_path
-from saw_ros.graph.pipeline import PipelineError, format_comparison, run_pipeline, write_report
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
+from saw_ros.graph.pipeline import format_comparison, PipelineError, run_pipeline, write_report
+from saw_ros.interface.config import config_path
 
 HELP = 'run the full pipeline (simulator, camera, vision, comparison, recorder) and report'
 

@@ -13,8 +13,9 @@ examples:
   saw-ros figures --out /tmp/repro --quick # coarse grids, a few seconds
   saw-ros figures --only 9,10 --out /tmp/repro
 """
-import sys
 from pathlib import Path
+import sys
+
 from saw_ros.cli.errors import UserError
 
 HELP = 'regenerate the paper\'s figures (PNG + CSV) and the fidelity report'

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import math
 
+from saw_ros.cli.errors import UserError
 from saw_ros.core import Scenario
 from saw_ros.core.params import ConditionParams, spec_entries
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.frames import RenderOptions, Renderer
+from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.synthetic import simulate_run
 from saw_ros.vision.video import VideoError, VideoWriter
-from saw_ros.cli.errors import UserError
 
 HELP = 'simulate a run and render it to an .mp4 (the virtual camera, offline)'
 

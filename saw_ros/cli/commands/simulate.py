@@ -12,15 +12,15 @@ examples:
 """
 import csv
 import math
-import sys
 from pathlib import Path
+import sys
 
 import numpy as np
 
-from saw_ros.interface.config import load_scenario
 from saw_ros.core import DivergenceError, Scenario, Simulator
 from saw_ros.core.metrics import analyse
 from saw_ros.core.params import ParameterError
+from saw_ros.interface.config import load_scenario
 
 HELP = 'run one simulation and print AR, speed and CCI convergence (optionally a CSV)'
 

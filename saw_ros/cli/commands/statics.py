@@ -9,6 +9,7 @@ examples:
   saw-ros statics --slope-deg 30 --fext-mg 0.5 --mu 0.8
 """
 import math
+
 from saw_ros.cli.errors import UserError
 
 HELP = 'minimal normal forces and top-surface threshold (paper Eqs. 3-5, Figure 4)'

@@ -20,17 +20,17 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+from pathlib import Path
 import sys
 import typing
-from pathlib import Path
 
 import numpy as np
 
-from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.offline import SCALE_FRAMES, measure_scale, track_video  # noqa: F401
-from saw_ros.vision.tracker import TrackerConfig, TrackStatus, scale_from_spacing
-from saw_ros.vision.video import VideoError
 from saw_ros.cli.errors import UserError
+from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.offline import measure_scale, SCALE_FRAMES, track_video  # noqa: F401
+from saw_ros.vision.tracker import scale_from_spacing, TrackerConfig, TrackStatus
+from saw_ros.vision.video import VideoError
 
 HELP = 'track the two pink markers in a video: position, speed, pitch, steady speed'
 

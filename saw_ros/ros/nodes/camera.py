@@ -17,26 +17,25 @@ import queue
 import sys
 import threading
 import time
+
+from geometry_msgs.msg import PoseStamped
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from sensor_msgs.msg import CameraInfo, Image, JointState
-from geometry_msgs.msg import PoseStamped
-
-from saw_ros.ros import cdr
-from saw_ros.ros.cdr import NS_PER_S
-from saw_ros.ros import conversions as conv
 from saw_ros.core.params import ParameterError, Scenario, spec_entries, spec_meta
-from saw_ros.ros.params import ScenarioParameters, declare_spec, yaml_text
-from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.frames import (Renderer, RenderOptions, RobotPose, StampedSeries,
-                                   pose_between)
-from saw_ros.vision.video import VideoError, VideoWriter
 from saw_ros.interface import topics
+from saw_ros.ros import cdr
+from saw_ros.ros import conversions as conv
+from saw_ros.ros.cdr import NS_PER_S
+from saw_ros.ros.params import declare_spec, ScenarioParameters, yaml_text
+from saw_ros.ros.qos import image_publisher_qos, INPUT_DEPTH, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
-from saw_ros.ros.qos import INPUT_DEPTH, STREAM_QOS, image_publisher_qos, with_depth
 from saw_ros.ros.runtime import NodeFailure, run_node
+from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.frames import pose_between, Renderer, RenderOptions, RobotPose, StampedSeries
+from saw_ros.vision.video import VideoError, VideoWriter
+from sensor_msgs.msg import CameraInfo, Image, JointState
 
 KEEP = 2.0          # s of simulated time kept in the pose buffers
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)

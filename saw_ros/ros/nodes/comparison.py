@@ -34,16 +34,16 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from saw_ros.ros import cdr
-from saw_ros.ros import conversions as conv
-from saw_ros.analysis.compare import RunComparator, find_reference, load_reference, reference_error
-from saw_ros.ros.params import yaml_text
+from saw_ros.analysis.compare import find_reference, load_reference, reference_error, RunComparator
 from saw_ros.core.params import Scenario, spec_meta
 from saw_ros.interface import topics
-from saw_ros.ros.params import SIMULATOR_EXCLUDED, declare_spec
+from saw_ros.ros import cdr
+from saw_ros.ros import conversions as conv
+from saw_ros.ros.params import declare_spec, SIMULATOR_EXCLUDED
+from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
-from saw_ros.ros.runtime import NodeFailure, run_node, spin_events
 from saw_ros.ros.ready import Readiness
+from saw_ros.ros.runtime import NodeFailure, run_node, spin_events
 
 TRACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -30,11 +30,11 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from saw_ros.ros.params import yaml_text
-from saw_ros.core.params import spec_meta
 from saw_ros.bag.reader import BagReader, BagReadError
-from saw_ros.ros.conversions import clock_cdr
+from saw_ros.core.params import spec_meta
 from saw_ros.interface.topics import CLOCK
+from saw_ros.ros.conversions import clock_cdr
+from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import CLOCK_QOS, message_class
 from saw_ros.ros.runtime import NodeFailure, run_node
 

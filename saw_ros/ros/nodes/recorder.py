@@ -41,18 +41,17 @@ import threading
 import time
 from typing import Dict, List
 
-import yaml
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-from saw_ros.ros.params import yaml_text
-from saw_ros.core.params import spec_meta
-from saw_ros.bag.schema import UnknownMessageType, check_definitions
+from saw_ros.bag.schema import check_definitions, UnknownMessageType
 from saw_ros.bag.writer import BagWriteError, BagWriter, INFINITE, qos_profile_dict
+from saw_ros.core.params import spec_meta
 from saw_ros.interface.topics import CLOCK, PREFIX
+from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import message_class
 from saw_ros.ros.runtime import NodeFailure, run_node
+import yaml
 
 _STOP = object()
 # (name, default, spec metadata); every one read once at start, so read-only. The node checks

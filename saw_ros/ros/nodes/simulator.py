@@ -33,18 +33,17 @@ import time
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from std_srvs.srv import Trigger
-
-from saw_ros.ros import conversions as conv
-from saw_ros.core.params import spec_meta
-from saw_ros.ros.params import declare_spec
 from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
-from saw_ros.ros.params import SIMULATOR_EXCLUDED, ScenarioParameters
+from saw_ros.core.params import spec_meta
 from saw_ros.interface import topics
+from saw_ros.ros import conversions as conv
+from saw_ros.ros.params import declare_spec
+from saw_ros.ros.params import ScenarioParameters, SIMULATOR_EXCLUDED
 from saw_ros.ros.qos import message_class, publisher_profile
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_node
+from std_srvs.srv import Trigger
 
 # What the node publishes every step, in this order (tests and benchmarks subscribe from here).
 # (saw_ros.interface.topics: the simulator's rows of the topic table.)

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 from typing import Iterator, Optional, Tuple
 
 # FFmpeg's own messages about a damaged file ("moov atom not found") would come before our
@@ -30,17 +30,17 @@ os.environ.setdefault('OPENCV_FFMPEG_LOGLEVEL', '-8')
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
-from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterException
-from rclpy.node import Node
-from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import CameraInfo, Image
-
-from saw_ros.ros import cdr
-from saw_ros.ros import conversions as conv
-from saw_ros.ros.runtime import CLOCK_QOS, NodeFailure, image_publisher_qos, run_node, spin_node
-from saw_ros.vision.video import VideoError
+from rcl_interfaces.msg import ParameterDescriptor  # noqa: E402
+from rclpy.clock import Clock, ClockType  # noqa: E402
+from rclpy.exceptions import ParameterException  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rosgraph_msgs.msg import Clock as ClockMsg  # noqa: E402
+from saw_ros.ros import cdr  # noqa: E402
+from saw_ros.ros import conversions as conv  # noqa: E402
+from saw_ros.ros.runtime import (CLOCK_QOS, image_publisher_qos, NodeFailure,  # noqa: E402
+                                 run_node, spin_node)
+from saw_ros.vision.video import VideoError  # noqa: E402
+from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
 
 NS = 1_000_000_000
 IMAGE_EXTENSIONS = ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.tiff', '.ppm', '.pgm')

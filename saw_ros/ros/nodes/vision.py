@@ -22,27 +22,26 @@ Pose and twists are published only for 'ok' frames: nothing is made up. The math
 """
 from __future__ import annotations
 
-import struct
 from collections import deque
+import struct
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped
+import numpy as np
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
-from sensor_msgs.msg import CameraInfo, Image
-
-from saw_ros.ros import cdr
-from saw_ros.ros.cdr import NS_PER_S
-from saw_ros.ros import conversions as conv
 from saw_ros.core.params import spec_entries, spec_meta
+from saw_ros.interface import topics
+from saw_ros.ros import cdr
+from saw_ros.ros import conversions as conv
+from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, yaml_text
+from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, with_depth
+from saw_ros.ros.ready import Readiness
+from saw_ros.ros.runtime import NodeFailure, run_node
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
-from saw_ros.interface import topics
-from saw_ros.ros.ready import Readiness
-from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, with_depth
-from saw_ros.ros.runtime import NodeFailure, run_node
+from sensor_msgs.msg import CameraInfo, Image
 
 PENDING = 30            # images kept while waiting for the first CameraInfo
 
