@@ -77,7 +77,8 @@ def _track_condition(job) -> Tuple[np.ndarray, np.ndarray, int]:
 def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
                  voltages: Sequence[float] = PAPER_VOLTAGES, base: Optional[Scenario] = None,
                  reference_file: Optional[Path] = None, workers: int = 2, fps: float = 60.0,
-                 camera: Optional[Dict[str, float]] = None, progress=None) -> List[ConditionResult]:
+                 camera: Optional[Dict[str, float]] = None,
+                 progress=None) -> List[ConditionResult]:
     base = base or Scenario()
     grid = [(s, v) for v in voltages for s in slopes_deg]
     scenarios = [base.with_values({'conditions.slope': math.radians(s), 'motor.voltage': v})
@@ -95,8 +96,7 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
             progress(1)
     reference = load_reference(reference_file) if reference_file else []
     results = []
-    for (slope, volts), s, i, (times, xs, ok) in zip(grid, scenarios, range(len(grid)),
-                                                      tracked):
+    for (slope, volts), s, i, (times, xs, ok) in zip(grid, scenarios, range(len(grid)), tracked):
         comp = RunComparator(s.robot, s.frequency)
         q = trajectory.q[:, i]
         for row in zip(trajectory.t, q[:, 0]):
@@ -191,7 +191,7 @@ def markdown(results: List[ConditionResult], summary: Dict[str, object]) -> str:
     lines.append(f'| all | {100 * summary["mean_relative_error"]:.3f} | '
                  f'{PAPER_ERRORS_PCT["overall"]} |')
     lines += ['', 'Our "experiment" is the virtual camera and tracker, so the error measures the '
-              'vision pipeline, not the model; the paper\'s errors compare its model with the '
+              "vision pipeline, not the model; the paper's errors compare its model with the "
               'real robot (and its 4 V error is blamed on the motor slowing under load, which a '
               'constant-speed helix ignores).', '',
               '## Speed against slope and voltage (Figure 17): linear fits of the tracked speed',

@@ -120,7 +120,7 @@ class RunComparator:
 
     def result(self) -> Comparison:
         n_truth, n_tracked = self.truth.size, self.tracked.size
-        counts = dict(truth_samples=n_truth, tracked_samples=n_tracked)
+        counts = {'truth_samples': n_truth, 'tracked_samples': n_tracked}
         f = self.frequency
         if not (f > 0) or n_truth < 10:
             return Comparison('waiting for data', frequency=f, **counts)

@@ -166,7 +166,7 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
     config = config or TrackerConfig()
     if run.marker_spacing is not None:
         config = dataclasses.replace(config, marker_spacing=run.marker_spacing)
-    camera_kw = dict(slope=math.radians(run.slope_deg), center_x=center_x)
+    camera_kw = {'slope': math.radians(run.slope_deg), 'center_x': center_x}
     if run.px_per_m is not None:
         scale, source = run.px_per_m, 'px_per_m'
     else:

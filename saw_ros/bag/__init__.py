@@ -7,4 +7,5 @@ What the files contain is described in ``docs/bags.md`` (and rosbag2's own layou
 """
 from saw_ros.bag.reader import BagReader, BagReadError  # noqa: F401
 from saw_ros.bag.schema import message_definition, type_hash  # noqa: F401
-from saw_ros.bag.writer import BagExistsError, BagWriteError, BagWriter, qos_profile_dict  # noqa: F401
+from saw_ros.bag.writer import (BagExistsError, BagWriteError, BagWriter,  # noqa: F401
+                                qos_profile_dict)

@@ -102,7 +102,7 @@ class Damage:
 @dataclass
 class BagMessage:
     topic: str
-    type: str
+    type: str  # noqa: A003
     data: bytes
     log_time: int        # ns since the epoch: when the recorder received it
     publish_time: int    # ns since the epoch: when it was sent (log_time if unknown)
@@ -114,7 +114,7 @@ class BagMessage:
 @dataclass
 class TopicSummary:
     name: str
-    type: str
+    type: str  # noqa: A003
     serialization_format: str
     count: int = 0
     first: Optional[int] = None
@@ -505,7 +505,8 @@ class BagReader:
                     record = _parse(Schema if opcode == _SCHEMA else Channel, body)
                 except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
                     kind = 'schema' if opcode == _SCHEMA else 'channel'
-                    self._damaged(path, Damage(path, at, f'a {kind} record does not parse ({exc})'))
+                    self._damaged(path, Damage(path, at,
+                                               f'a {kind} record does not parse ({exc})'))
                     continue
                 (schemas if opcode == _SCHEMA else channels)[record.id] = record
             elif opcode == _DATA_END:

@@ -7,7 +7,8 @@ import numpy as np
 from saw_ros.core import Scenario, Simulator
 from saw_ros.core.dynamics import simulate
 
-KEYS = ['core_steps_per_s', 'batch_scenario_steps_per_s', 'batch_single_process_scenario_steps_per_s']
+KEYS = ['core_steps_per_s', 'batch_scenario_steps_per_s',
+        'batch_single_process_scenario_steps_per_s']
 
 
 def _rate(sim, steps, repeats=3):

@@ -5,11 +5,12 @@ Parameters: ``rate`` (Hz, for each 1 kHz-class topic), ``duration`` (s), ``strea
 clock, pose, twist, contacts, contact_wrench, joint_states: 0-6), ``image_fps`` (0: no images),
 ``image_width``/``image_height``, ``prefix`` (topic namespace, default ``/saw``; /clock is
 ``<prefix>/clock`` unless ``prefix`` is /saw), ``wait_subscribers`` (start once every topic has
-this many subscriptions, at most 30 s), ``start_delay`` (s, after that), ``publisher_depth`` (history of the 1 kHz-class
-publishers: 1000 as the simulator's, ``PUBLISHER_DEPTH``; 0 = the contract's STREAM_QOS/CLOCK_QOS
-depths 200/100), ``image_depth`` (history of the image publisher, default 120: see IMAGE_DEPTH),
-``image_participant`` (images from a DDS participant of their own, as from the camera node).
-At the end it waits for reliable delivery, prints ``published <topic> <count>`` lines and exits.
+this many subscriptions, at most 30 s), ``start_delay`` (s, after that), ``publisher_depth``
+(history of the 1 kHz-class publishers: 1000 as the simulator's, ``PUBLISHER_DEPTH``; 0 = the
+contract's STREAM_QOS/CLOCK_QOS depths 200/100), ``image_depth`` (history of the image publisher,
+default 120: see IMAGE_DEPTH), ``image_participant`` (images from a DDS participant of their own,
+as from the camera node). At the end it waits for reliable delivery, prints ``published <topic>
+<count>`` lines and exits.
 """
 from __future__ import annotations
 
@@ -72,7 +73,8 @@ class LoadGen(Node):
             img.data = bytes(range(256)) * (3 * w * h // 256) + bytes(3 * w * h % 256)
             self.image = (f'{prefix}/camera/image_raw',
                           self._image_node().create_publisher(Image, f'{prefix}/camera/image_raw',
-                                                with_depth(IMAGE_QOS, int(p['image_depth']))),
+                                                              with_depth(IMAGE_QOS,
+                                                                         int(p['image_depth']))),
                           img)
         self.counts = {topic: 0 for topic, _, _ in self.streams}
         if self.image:

@@ -154,7 +154,7 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     recorded = set(reader.topics())
     for topic in (topics.IMAGE, topics.CAMERA_INFO, topics.TRACKING_STATUS):
         if topic == topics.IMAGE and topic not in recorded:
-            problems_note = 'images not recorded (the camera info and the tracker\'s status ' \
+            problems_note = "images not recorded (the camera info and the tracker's status " \
                             'count the frames)'
             continue
         lost[topic] = _missing(stamps.get(topic, []), frame_stamps)

@@ -50,7 +50,9 @@ def _trial(work: Path, name: str, env, **load):
         if not wait_for(lambda: 'recording to' in rec.output() or rec.returncode is not None,
                         30) or rec.returncode is not None:
             raise TrialFailed(f'recorder did not start; see {rec.log_path}')
-        gen = ManagedProcess(f'gen_{name}', node_command('loadgen', params=load, package='saw_ros.bench'), env, logs)
+        gen = ManagedProcess(f'gen_{name}',
+                             node_command('loadgen', params=load, package='saw_ros.bench'),
+                             env, logs)
         wait_for(lambda: 'recording /' in rec.output(), 20)
         cpu0, t0 = _cpu_seconds(rec.proc.pid), time.monotonic()
         try:

@@ -1,13 +1,13 @@
 """
 Simulator node throughput: the highest real-time factor it sustains with zero lost messages.
 
-For each real_time_factor of a ladder, the simulator node runs ``duration`` of simulated time
-(60 s; 10 s with --quick) as a subprocess, and ONE subscriber process takes every topic (/clock and the
-five /saw streams; reliable, a 1000-message queue (1 s at 1 kHz) as a recorder would use, raw
-CDR as rosbag2 records it). The subscriber counts every stamp of every topic:
-lost = expected - received in-order unique stamps. A factor is sustained when nothing is lost and
-the simulated time advanced at least 97 % as fast as asked. The ladder stops at the first factor
-that fails; ``sim_max_realtime_factor`` is the last one sustained (0 if even the first fails),
+For each real_time_factor of a ladder, the simulator node runs ``duration`` of simulated time (60
+s; 10 s with --quick) as a subprocess, and ONE subscriber process takes every topic (/clock and the
+five /saw streams; reliable, a 1000-message queue (1 s at 1 kHz) as a recorder would use, raw CDR
+as rosbag2 records it). The subscriber counts every stamp of every topic: lost = expected -
+received in-order unique stamps. A factor is sustained when nothing is lost and the simulated time
+advanced at least 97 % as fast as asked. The ladder stops at the first factor that fails;
+``sim_max_realtime_factor`` is the last one sustained (0 if even the first fails),
 ``sim_lost_messages`` the messages lost at real_time_factor 1.0.
 
 Both processes and the bench share a 2-core machine with whatever else runs: figures are noisy.

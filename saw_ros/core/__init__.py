@@ -8,7 +8,7 @@ Modules are named after the concepts of the paper: ``params`` (typed parameters)
 from saw_ros.core.dynamics import DivergenceError, simulate, Simulator, Trajectory
 from saw_ros.core.kinematics import link_geometry, v_theory
 from saw_ros.core.params import (ConditionParams, IntegrationParams, MotorParams, ParameterError,
-                     RobotParams, Scenario, SurfaceParams)
+                                 RobotParams, Scenario, SurfaceParams)
 
 __all__ = ['ConditionParams', 'DivergenceError', 'IntegrationParams', 'MotorParams',
            'ParameterError', 'RobotParams', 'Scenario', 'Simulator', 'SurfaceParams',

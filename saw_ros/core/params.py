@@ -174,15 +174,15 @@ class SurfaceParams(_Validated):
 
     section = 'surface'
     normal_stiffness: float = spec(15500.0, 'N/m^exponent',
-                                   'Hertz normal stiffness kn: Fn = kn * delta^exponent', 0.0, None,
-                                   low_open=True)
+                                   'Hertz normal stiffness kn: Fn = kn * delta^exponent', 0.0,
+                                   None, low_open=True)
     hertz_exponent: float = spec(1.5, '', 'exponent of the normal law (1.5 Hertz, 1.0 linear)',
                                  1.0, 3.0)
-    tangential_stiffness: float = spec(1082.0, 'N/m', 'tangential stiffness kt of the surface', 0.0,
-                                       None, low_open=True)
+    tangential_stiffness: float = spec(1082.0, 'N/m', 'tangential stiffness kt of the surface',
+                                       0.0, None, low_open=True)
     friction_coefficient: float = spec(1.0, '', 'Coulomb coefficient of friction mu', 0.0, 5.0)
-    restitution: float = spec(0.9, '', 'coefficient of restitution e: share of the stored energy a '
-                              'tip gets back when it unloads', 0.0,
+    restitution: float = spec(0.9, '', 'coefficient of restitution e: share of the stored energy '
+                              'a tip gets back when it unloads', 0.0,
                               1.0, low_open=True)
     hysteresis_speed: float = spec(0.01, 'm/s', 'deformation rate over which the force '
                                    'factor passes from e (unloading) to 1 (loading)', 0.0, None,
@@ -305,4 +305,3 @@ class Scenario:
         parts = {s: getattr(self, s).replace(**c) if c else getattr(self, s)
                  for s, c in groups.items()}
         return Scenario(**parts)
-

@@ -32,8 +32,8 @@ opposes it and pushes the robot back, more so at a higher COF. Two models follow
    anchors are never forgotten: a landed cell keeps its spring stretched, a lifted cell first
    sticks until its spring reaches the cap, and the load redistributes over the anchors after
    every step; anchors that reach their cap slip (``anchors_slip``; the advance is then what
-   the slipping leaves, usually none, and AR 0 when no equilibrium exists at all). Same F_m and F_a as the closed form, so the
-   difference between the two models is the contact law alone.
+   the slipping leaves, usually none, and AR 0 when no equilibrium exists at all). Same F_m and
+   F_a as the closed form, so the difference between the two models is the contact law alone.
 """
 from __future__ import annotations
 

@@ -2,10 +2,11 @@
 The whole ROS graph as separate processes: simulator, camera, vision, comparison, recorder.
 
 Used by the main job (``saw-ros demo``), the full-graph integration test and the pipeline
-benchmark. No rclpy import here: each node is its own process (``saw_ros.graph.process``), in a private
-DDS domain; the simulator starts stepping only once every one of its topics has a subscriber (the
-recorder subscribes to all of them), so nothing is missed at the start. The run ends when the
-simulator reaches its duration and the comparison node has published its final summary.
+benchmark. No rclpy import here: each node is its own process (``saw_ros.graph.process``), in a
+private DDS domain; the simulator starts stepping only once every one of its topics has a
+subscriber (the recorder subscribes to all of them), so nothing is missed at the start. The run
+ends when the simulator reaches its duration and the comparison node has published its final
+summary.
 """
 from __future__ import annotations
 
@@ -98,9 +99,9 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             # Readiness from the graph: camera, comparison and vision say ready on /saw/ready
             # (saw_ros.ros.ready); a probe process waits for them (no rclpy here). Started
             # first, it discovers the graph while the nodes start.
-            probe = ManagedProcess('ready', node_command(
-                'ready', package='saw_ros.ros') + ['--nodes', ','.join(READY_NODES),
-                                                   '--timeout', f'{3 * MATCH_TIMEOUT:g}'], env, logs)
+            probe_command = node_command('ready', package='saw_ros.ros') + [
+                '--nodes', ','.join(READY_NODES), '--timeout', f'{3 * MATCH_TIMEOUT:g}']
+            probe = ManagedProcess('ready', probe_command, env, logs)
         # Every topic needs a subscriber before the first step: the recorder's, or with no
         # recorder the camera's and comparison's (then only /saw/pose and /saw/joint_states).
         simulator = launch('simulator', duration=float(duration),

@@ -97,7 +97,7 @@ def not_found_message(package: str, what: str = '') -> str:
     """One line: what is missing and what to source."""
     where = os.environ.get('AMENT_PREFIX_PATH') or 'not set'
     return (f"package '{package}' not found{' (' + what + ')' if what else ''}: no install "
-            f"prefix beside its Python package, AMENT_PREFIX_PATH {where}; {SOURCE_HINT}")
+            f'prefix beside its Python package, AMENT_PREFIX_PATH {where}; {SOURCE_HINT}')
 
 
 def share_file(package: str, *parts: str) -> str:

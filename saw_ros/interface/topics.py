@@ -19,7 +19,7 @@ from typing import List, Tuple
 @dataclass(frozen=True)
 class Topic:
     name: str
-    type: str           # 'package/msg/Name'
+    type: str           # 'package/msg/Name'  # noqa: A003
     qos: str            # profile name: stream, clock, image, tracking, latched
     publisher: str      # node name (several: 'camera, comparison')
     rate: str

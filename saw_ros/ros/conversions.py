@@ -57,6 +57,7 @@ def time_msg(nanoseconds: int, out: Optional[Time] = None) -> Time:
 def stamp_ns(stamp: Time) -> int:
     return stamp.sec * NS_PER_S + stamp.nanosec
 
+
 def _header(msg, nanoseconds: int, frame: str):
     time_msg(nanoseconds, msg.header.stamp)
     msg.header.frame_id = frame
@@ -111,6 +112,7 @@ def contact_points(tips: np.ndarray, normal: np.ndarray, tangential: np.ndarray,
     points['slipping'] = slipping[index]
     return points
 
+
 def points_of(msg: PointCloud2) -> np.ndarray:
     """Read any little-endian PointCloud2 by its field names into a structured array."""
     if msg.is_bigendian:
@@ -132,6 +134,7 @@ def body_axes(fx: float, fy: float, theta: float):
     c, s = math.cos(theta), math.sin(theta)
     return c * fx + s * fy, -s * fx + c * fy
 
+
 def joint_names(wave_links: int) -> list:
     return ['helix', 'base_link_joint'] + [f'link_{i:02d}' for i in range(wave_links)]
 
@@ -142,6 +145,7 @@ def joint_names(wave_links: int) -> list:
 # records). Only the numbers change from step to step; the constant parts (frame ids, joint
 # names, PointField list) are encoded once. tests/ros/test_conversions.py checks every encoder
 # against rclpy's own serialization.
+
 
 def _frame_block(frame: str, then_align: int) -> bytes:
     """frame_id string after the 8-byte stamp, padded for the next field's alignment."""

@@ -87,7 +87,7 @@ def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: b
     defaults = {n: v for n, v, _ in entries}
     accept_integers_for_doubles(node, defaults, defaults)
     declared = node.declare_parameters('', [(n, v, descriptor(n, v, m,
-                                                             m.get('read_only', read_only)))
+                                                              m.get('read_only', read_only)))
                                             for n, v, m in entries])
     return {p.name: p.value for p in declared}
 

@@ -18,7 +18,7 @@ import time
 from typing import Callable, List, Optional
 
 # The QoS profiles live in saw_ros.ros.qos; importable from here for older importers.
-from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, image_publisher_qos, IMAGE_QOS,
+from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, image_publisher_qos, IMAGE_QOS,  # noqa: F401,E501
                              INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth)
 
 
@@ -133,8 +133,8 @@ def run_node(make_node: Callable[[], 'object'], args=None,
     # No rclpy signal handlers (they would shut the context down under a running callback):
     # ours only request the stop, from before rcl starts (checked once the node is built).
     _STOP.requested, _STOP.interrupt = False, False
-    previous = {sig: signal.signal(sig, _on_stop_signal) for sig in (signal.SIGINT,
-                                                                    signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, _on_stop_signal)
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     node = None
     code = 0
     try:

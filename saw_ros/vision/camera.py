@@ -45,18 +45,19 @@ class CameraModel:
     height: int = spec(720, 'px', 'image height', 16, None)
     scale: float = spec(1200.0, 'px/m', 'pixels per metre in the plane of motion', 0.0, None,
                         low_open=True)
-    slope: float = spec(0.0, 'rad', "slope of the surfaces as the level camera sees them (their "
-                        "angle to the image horizontal, + climbs)", -math.pi / 2, math.pi / 2)
+    slope: float = spec(0.0, 'rad', 'slope of the surfaces as the level camera sees them (their '
+                        'angle to the image horizontal, + climbs)', -math.pi / 2, math.pi / 2)
     center_x: float = spec(0.33, 'm', 'surface-frame x seen at the principal point')
     center_y: float = spec(0.0225, 'm', 'surface-frame y seen at the principal point')
     distance: float = spec(1.0, 'm', 'optical centre to the plane of motion: focal length '
                            'f = scale * distance', 0.0, None, low_open=True)
-    mirror: bool = spec(False, '', "true when the robot travels towards the left of the image "
+    mirror: bool = spec(False, '', 'true when the robot travels towards the left of the image '
                         "(surface +x points to the image's left)")
     cx: Optional[float] = None   # px, principal point; None = image centre
     cy: Optional[float] = None   # px
     dist_coeffs: Tuple[float, ...] = ()           # OpenCV (k1, k2, p1, p2[, k3[, k4, k5, k6]])
-    dist_matrix: Optional[Tuple[float, ...]] = None  # (fx, fy, cx, cy) of the calibration; None = K
+    # (fx, fy, cx, cy) of the calibration; None = K
+    dist_matrix: Optional[Tuple[float, ...]] = None
 
     def __post_init__(self):
         if self.width < 16 or self.height < 16:

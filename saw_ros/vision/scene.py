@@ -159,4 +159,3 @@ def draw_clutter(img: np.ndarray, camera: CameraModel, things: Iterable[Clutter]
             p = camera.to_pixels(corners)
             pts = np.stack([np.rint(p.real * 16), np.rint(p.imag * 16)], -1).astype(np.int32)
             cv2.fillConvexPoly(img, pts, bgr, cv2.LINE_AA, 4)
-

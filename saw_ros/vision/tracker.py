@@ -79,7 +79,6 @@ from saw_ros.core.params import spec
 from saw_ros.vision.camera import CameraModel
 
 
-
 class TrackStatus(StrEnum):
     """What a frame gave; the value is the text of messages and CSV files."""
     OK = 'ok'
@@ -311,7 +310,7 @@ def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
         # Two blobs merged by the coarse step (a pink thing touching a marker) but apart at full
         # resolution are measured apart.
         masks = [core] if parts == 2 else [(labels == k).view(np.uint8)
-                                            for k in range(1, parts)]
+                                           for k in range(1, parts)]
         pink_pos = np.maximum(pink, 0.0)
         for blob in masks:
             in_blob = blob > 0

@@ -201,7 +201,7 @@ def test_killed_writer_leaves_complete_ordered_chunks(tmp_path):
 
     What is lost is the reorder buffer (0.5 s) and the open chunk.
     """
-    script = textwrap.dedent(f'''
+    script = textwrap.dedent(f"""
         import os, signal, sys
         sys.path.insert(0, {os.getcwd()!r})
         from saw_ros.bag import BagWriter, qos_profile_dict
@@ -214,7 +214,7 @@ def test_killed_writer_leaves_complete_ordered_chunks(tmp_path):
                     t = {T0} + (burst * 5 + i - lag) * {MS}
                     bag.write(topic, b'x' * 100, t, t, burst * 5 + i)
         os.kill(os.getpid(), signal.SIGKILL)
-    ''')
+    """)
     proc = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True)
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     reader = BagReader(str(tmp_path / 'killed'))

@@ -57,7 +57,7 @@ def test_imports_point_down_only(layer):
 
 
 def test_pure_layers_import_no_rclpy():
-    code = f'''
+    code = f"""
 import importlib, pkgutil, sys
 for layer in {PURE!r}:
     package = importlib.import_module('saw_ros.' + layer)
@@ -66,7 +66,7 @@ for layer in {PURE!r}:
 bad = sorted(m for m in sys.modules if m.split('.')[0] in {ROS_MODULES!r}
              or m.split('.')[0].endswith('_msgs'))
 print(bad)
-'''
+"""
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                             timeout=120)
     assert result.returncode == 0, result.stderr

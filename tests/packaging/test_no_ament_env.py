@@ -121,14 +121,14 @@ def test_installed_message_definitions_and_hashes_without_ament_prefix_path(no_a
 def test_config_files_found_by_the_installed_package_without_ament_prefix_path(tmp_path):
     """Run from elsewhere (in a colcon workspace this imports the installed saw_ros, not the
     source): config_path and the recorder's default topics find msg_config/."""
-    code = textwrap.dedent('''
+    code = textwrap.dedent("""
         import saw_ros
         from saw_ros.interface.config import config_path
         from saw_ros.ros.nodes.recorder import default_topics
         print(saw_ros.__file__)
         print(config_path('record_topics.yaml'))
         print(default_topics())
-    ''')
+    """)
     out = subprocess.run([sys.executable, '-c', code], cwd=tmp_path, env=without_ament(),
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
@@ -190,13 +190,14 @@ def test_recorder_without_definitions_refuses_before_creating_the_bag(tmp_path):
     One line saying what to source, exit code 1, no bag directory.
     """
     out = tmp_path / 'bag'
-    code = textwrap.dedent(f'''
+    code = textwrap.dedent(f"""
         import sys
         import saw_ros.interface.share
-        saw_ros.interface.share.python_locations = lambda package: []   # as if nothing were found there
+        # as if nothing were found there
+        saw_ros.interface.share.python_locations = lambda package: []
         from saw_ros.ros.nodes.recorder import main
         sys.exit(main(['recorder', '--ros-args', '-p', 'output:={out}']))
-    ''')
+    """)
     proc = subprocess.run([sys.executable, '-c', code], cwd=tmp_path,
                           env=without_ament(isolated_ros_env()), capture_output=True, text=True,
                           timeout=120)

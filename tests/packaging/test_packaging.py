@@ -49,12 +49,12 @@ needs_install = pytest.mark.skipif(
     'or colcon build + colcon test')
 venv_only = pytest.mark.skipif(
     not BOOTSTRAP_VENV, reason=f"checks scripts/bootstrap.sh's .venv; this run's install is "
-    f"{LAYOUT} ({PREFIX})")
+    f'{LAYOUT} ({PREFIX})')
 
 
 def console_scripts():
     text = (ROOT / 'setup.py').read_text()
-    nodes = re.search(r"NODES = \(([^)]*)\)", text).group(1)
+    nodes = re.search(r'NODES = \(([^)]*)\)', text).group(1)
     return re.findall(r"'([a-z_]+)'", nodes)
 
 
@@ -85,7 +85,7 @@ def test_package_xml_is_format_3_ament_python():
 def test_setup_installs_config_and_ament_marker_for_colcon():
     text = (ROOT / 'setup.py').read_text()
     assert "'share/ament_index/resource_index/packages'" in text
-    assert "msg_config" in text
+    assert 'msg_config' in text
     assert (ROOT / 'resource' / 'saw_ros').is_file()
     assert 'script_dir=$base/lib/saw_ros' in (ROOT / 'setup.cfg').read_text()
     assert 'simulator' in console_scripts()
@@ -117,7 +117,8 @@ def test_installed_share_has_package_xml_and_every_config_file():
     share = PREFIX / 'share' / 'saw_ros'
     assert (share / 'package.xml').is_file()
     for path in (ROOT / 'msg_config').iterdir():
-        assert (share / 'msg_config' / path.name).is_file(), f'{path.name} not installed in {share}'
+        assert (share / 'msg_config' / path.name).is_file(), \
+            f'{path.name} not installed in {share}'
 
 
 @needs_install

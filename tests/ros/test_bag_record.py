@@ -20,8 +20,9 @@ def start_recorder(tmp_path, output, **params):
 
 
 def run_loadgen(tmp_path, **params):
-    proc = ManagedProcess('loadgen', node_command('loadgen', params=params, package='saw_ros.bench'), os.environ,
-                          tmp_path / 'logs')
+    proc = ManagedProcess('loadgen',
+                          node_command('loadgen', params=params, package='saw_ros.bench'),
+                          os.environ, tmp_path / 'logs')
     assert proc.wait(60) == 0, proc.output()
     counts = {}
     for line in proc.output().splitlines():
@@ -71,7 +72,9 @@ def test_kill_9_leaves_complete_chunks_readable(tmp_path):
     out = tmp_path / 'bag'
     rec = start_recorder(tmp_path, out, chunk_size=16384)
     published = run_loadgen(tmp_path, rate=1000.0, duration=1.0, streams=3)
-    size = lambda: os.path.getsize(out / 'bag_0.mcap') if (out / 'bag_0.mcap').exists() else 0
+
+    def size():
+        return os.path.getsize(out / 'bag_0.mcap') if (out / 'bag_0.mcap').exists() else 0
     assert wait_for(lambda: size() > 50_000, 10)
     rec.signal(signal.SIGKILL)
     assert rec.wait(10) == -signal.SIGKILL

@@ -1,7 +1,6 @@
 """CDR readers and writers of saw_ros.ros.cdr against rclpy's own serialisation."""
 import math
 
-from geometry_msgs.msg import PoseStamped
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message

@@ -4,8 +4,9 @@ Clean stops (issue 10).
 SIGINT and SIGTERM end every node with exit 0, no traceback and no FATAL line, every time, and a
 recording stopped that way is complete.
 
-Launch-free: the nodes are subprocesses (saw_ros.graph.process) in the run's isolated DDS domain, started
-as the main job starts them (saw_ros.graph.pipeline.run_pipeline); every wait is on a condition.
+Launch-free: the nodes are subprocesses (saw_ros.graph.process) in the run's isolated DDS domain,
+started as the main job starts them (saw_ros.graph.pipeline.run_pipeline); every wait is on a
+condition.
 """
 import os
 import signal

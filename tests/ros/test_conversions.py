@@ -100,8 +100,8 @@ def test_pose_twist_wrench_frames_and_values():
     assert math.isclose(conv.pitch_of(q), 0.3)
     twist = conv.twist_msg(0.05, -0.01, 0.2, 5_000_000)
     assert twist.header.frame_id == 'surface'
-    assert (twist.twist.linear.x, twist.twist.linear.y, twist.twist.angular.z) == (0.05, -0.01,
-                                                                                     0.2)
+    assert (twist.twist.linear.x, twist.twist.linear.y, twist.twist.angular.z) == \
+        (0.05, -0.01, 0.2)
     wrench = wrench_msg(1.0, 2.0, 0.01, 5_000_000)
     assert wrench.header.frame_id == 'base_link'
     assert (wrench.wrench.force.x, wrench.wrench.force.y, wrench.wrench.torque.z) == (1.0, 2.0,

@@ -53,7 +53,7 @@ class ParameterClient:
     def spin(self, t):
         self.executor.spin_once(timeout_sec=t)
 
-    def set(self, name, value):
+    def set(self, name, value):  # noqa: A003
         from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter
         request = SetParameters.Request(
@@ -107,8 +107,8 @@ def test_comparison_refuses_non_positive_periods_at_start(tmp_path):
                      'steady_threshold = -1.0 must be')
 
 
-def test_comparison_start_up_parameters_are_read_only_and_live_ones_validated(tmp_path,
-                                                                               ros_context):
+def test_comparison_start_up_parameters_are_read_only_and_live_ones_validated(
+        tmp_path, ros_context):
     proc = start(tmp_path, 'comparison', reference_file='msg_config/reference_paper.csv')
     client = ParameterClient(ros_context, 'comparison')
     try:

@@ -38,8 +38,9 @@ def _record(tmp_path, rec_params, gen_params):
     rec = ManagedProcess('recorder', node_command('recorder', params=dict(
         output=str(out), **rec_params)), os.environ, tmp_path / 'logs')
     assert wait_for(lambda: 'recording to' in rec.output(), 30), rec.output()
-    gen = ManagedProcess('loadgen', node_command('loadgen', params=gen_params, package='saw_ros.bench'), os.environ,
-                         tmp_path / 'logs')
+    gen = ManagedProcess('loadgen',
+                         node_command('loadgen', params=gen_params, package='saw_ros.bench'),
+                         os.environ, tmp_path / 'logs')
     assert gen.wait(90) == 0, gen.output()
     rec.signal(signal.SIGINT)
     assert rec.wait(30) == 0, rec.output()
@@ -55,11 +56,11 @@ def _record(tmp_path, rec_params, gen_params):
 @pytest.mark.ros
 def test_recorder_reports_zero_loss(tmp_path):
     final, lost, published, reader = _record(
-        tmp_path, {}, dict(rate=200.0, duration=1.0, streams=2))
+        tmp_path, {}, {'rate': 200.0, 'duration': 1.0, 'streams': 2})
     counts = {n: t.count for n, t in reader.topics().items()}
     assert counts == published
     assert final.endswith('; lost 0'), final
-    assert lost == {t: 0 for t in published}
+    assert lost == dict.fromkeys(published, 0)
 
 
 @pytest.mark.ros
@@ -68,7 +69,7 @@ def test_recorder_that_cannot_keep_up_reports_its_loss_per_topic(tmp_path):
     # A one-message subscription queue against 6 x 3 kHz: messages are overwritten before the
     # recorder takes them.
     final, lost, published, reader = _record(
-        tmp_path, {'queue_depth': 1}, dict(rate=3000.0, duration=1.0, streams=6))
+        tmp_path, {'queue_depth': 1}, {'rate': 3000.0, 'duration': 1.0, 'streams': 6})
     assert sum(lost.values()) > 0, final
     seqs = {}
     for m in reader.messages():

@@ -116,7 +116,7 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
 
     # The camera's video, read back offline, gives the same speed within 0.5 %.
     camera.close()
-    results, tracker = track_video(video, dict(scale=1200.0), TrackerConfig(steady_window=STEADY))
+    results, tracker = track_video(video, {'scale': 1200.0}, TrackerConfig(steady_window=STEADY))
     assert len(results) == frames and tracker.counters.ok == frames
     offline = results[-1].steady_speed
     assert offline == pytest.approx(live, rel=0.005)

@@ -201,11 +201,11 @@ def test_lens_distortion_needs_its_calibration(level_run):
 
 
 def test_config_fields_are_validated():
-    for bad in (dict(hue_min=180), dict(hue_max=-1), dict(hue_min=140.5), dict(sat_min=300),
-                dict(roi=(10, 0, 5, 100)), dict(roi=(0, 0, 100)), dict(roi=(0.5, 0, 10, 10)),
-                dict(marker_spacing=0.0), dict(marker_diameter=-0.01),
-                dict(marker_spacing=0.01, marker_diameter=0.02), dict(spacing_tolerance=0.6),
-                dict(max_pitch=2.0), dict(colour_tolerance=0.0), dict(reacquire_after=0)):
+    for bad in ({'hue_min': 180}, {'hue_max': -1}, {'hue_min': 140.5}, {'sat_min': 300},
+                {'roi': (10, 0, 5, 100)}, {'roi': (0, 0, 100)}, {'roi': (0.5, 0, 10, 10)},
+                {'marker_spacing': 0.0}, {'marker_diameter': -0.01},
+                {'marker_spacing': 0.01, 'marker_diameter': 0.02}, {'spacing_tolerance': 0.6},
+                {'max_pitch': 2.0}, {'colour_tolerance': 0.0}, {'reacquire_after': 0}):
         with pytest.raises(ValueError):
             TrackerConfig(**bad)
     assert TrackerConfig(roi=[0, 10, 640, 700]).roi == (0, 10, 640, 700)

@@ -100,14 +100,14 @@ def test_clutter_layers_lighting_and_jpeg():
 
 
 def test_scene_options_are_validated():
-    for bad in (dict(gradient=1.0), dict(flicker=-0.1), dict(compression='h264'),
-                dict(quality=0)):
+    for bad in ({'gradient': 1.0}, {'flicker': -0.1}, {'compression': 'h264'},
+                {'quality': 0}):
         with pytest.raises(ValueError):
             SceneOptions(**bad)
-    for bad in (dict(shape='star'), dict(layer='ceiling'), dict(colour=(300, 0, 0)),
-                dict(size=(0.0, 0.01))):
+    for bad in ({'shape': 'star'}, {'layer': 'ceiling'}, {'colour': (300, 0, 0)},
+                {'size': (0.0, 0.01)}):
         with pytest.raises(ValueError):
-            Clutter(**dict(dict(colour=HOT_PINK, x=0.0, y=0.0), **bad))
+            Clutter(**dict({'colour': HOT_PINK, 'x': 0.0, 'y': 0.0}, **bad))
 
 
 def test_vision_imports_no_rclpy():

@@ -8,7 +8,7 @@ from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.synthetic import evaluate, simulate_run
-from saw_ros.vision.tracker import steady_speed, Tracker, TrackerConfig, TrackStatus
+from saw_ros.vision.tracker import steady_speed, Tracker, TrackStatus
 
 
 @pytest.fixture(scope='module')

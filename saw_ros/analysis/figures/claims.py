@@ -34,7 +34,7 @@ MARGINAL_DROP = (0.72 - 0.61) / 0.72      # 15.3 %: the paper's own "marginal" d
 
 @dataclass
 class Claim:
-    id: str
+    id: str  # noqa: A003
     source: str         # where the paper says it
     statement: str
     paper: str
@@ -93,7 +93,7 @@ def convergence_claims(data: Data) -> List[Claim]:
                  'within 2.5 s', m.steady_from is not None and m.steady_from <= 2.5)]
     t2 = m.cci_2pct_after
     out.append(Claim(
-        'C2', 'Sec. 5, Fig. 8', 'every velocity\'s CCI under 2 % after 0.4 s', '0.4 s',
+        'C2', 'Sec. 5, Fig. 8', "every velocity's CCI under 2 % after 0.4 s", '0.4 s',
         f'{_f(t2, 2)} s (vx alone: {_f(vx[0.02], 2)} s)', '+0.1 s',
         t2 is not None and t2 <= 0.5,
         why='Our robot starts centred in the gap, at rest, at wave phase 0 (the paper does not '
@@ -104,7 +104,7 @@ def convergence_claims(data: Data) -> List[Claim]:
             'is near zero; we scale them by their steady RMS (metrics.py). The forward velocity '
             'alone settles at the time given in brackets.'))
     t02 = m.cci_02pct_after
-    out.append(Claim('C3', 'Sec. 5, Fig. 8', 'every velocity\'s CCI under 0.2 % after 1.2 s',
+    out.append(Claim('C3', 'Sec. 5, Fig. 8', "every velocity's CCI under 0.2 % after 1.2 s",
                      '1.2 s', f'{_f(t02, 2)} s (vx alone: {_f(vx[0.002], 2)} s)', '+0.1 s',
                      t02 is not None and t02 <= 1.3,
                      why='See C2: initial state and hysteresis are not given by the paper.'))
@@ -118,14 +118,13 @@ def _rel(ours, paper):
 def ar_claims(data: Data) -> List[Claim]:
     if '11' not in data.figures:
         return []
-    g = data.grid
     level, vertical = data.ar(slope=0), data.ar(slope=90)
     at532 = ''
     if '21' in data.figures:
         at532 = (f' (at {FIG21_KT:.0f} N/m: {_f(data.ar(slope=0, kt=FIG21_KT))} / '
                  f'{_f(data.ar(slope=90, kt=FIG21_KT))})')
-    why_v = ('Our robot climbs better than the paper\'s: its 0-90 deg drop is '
-             f'{_f(_drop([level, vertical]))} against the paper\'s 0.11. How much the climb '
+    why_v = ("Our robot climbs better than the paper's: its 0-90 deg drop is "
+             f"{_f(_drop([level, vertical]))} against the paper's 0.11. How much the climb "
              'costs depends on how hard the tips are squeezed and how stiff the contact is in '
              'shear: the squeeze follows from the robot\'s height 2 (A + r), whose A ("3.7 cm") '
              'and r the paper does not give consistently (model.md section 8), and from kn, '
@@ -154,7 +153,7 @@ def gap_claims(data: Data) -> List[Claim]:
                                                     data.ar(slope=s, gap=50.0)) for s in low)
     worst = {g: ar[g].min() for g in GAPS_MM}
     mean = {g: ar[g].mean() for g in GAPS_MM}
-    squeeze = ('The squeeze at each gap follows from the robot\'s height 2 (A + r) = 57 mm, '
+    squeeze = ("The squeeze at each gap follows from the robot's height 2 (A + r) = 57 mm, "
                'inferred (the paper\'s "3.7 cm" amplitude cannot fit its gaps; r is not given): '
                'a taller or softer-squeezed robot would shift all three curves.')
     return [
@@ -162,7 +161,7 @@ def gap_claims(data: Data) -> List[Claim]:
               _f(ar[50.0][0]), '>= 0.9', ar[50.0][0] >= 0.9,
               why='Our level AR rises with the gap (G2) but reaches ' + _f(ar[50.0][0])
               + ' at 50 mm, where the tips are still squeezed 3.5 mm per side. '
-              + squeeze + ' We have not isolated what sets the remaining level loss; the paper\'s '
+              + squeeze + " We have not isolated what sets the remaining level loss; the paper's "
               'Sec. 5.3 attributes such losses to contacts moving at different speeds.'),
         Claim('G2', 'Sec. 5.1, Fig. 9', 'a larger gap gives a higher level AR', '50 > 45 > 40',
               ' > '.join(_f(ar[g][0]) for g in (50.0, 45.0, 40.0)), 'ordering',
@@ -218,16 +217,16 @@ def stiffness_claims(data: Data) -> List[Claim]:
     return [
         Claim('K1', 'Sec. 5.2, Fig. 10', 'AR rises with stiffness (100-1000 N/m) at 30, 60 and '
               '90 deg', 'rises', ', '.join(f'{s:.0f} deg {_f(ar[s][0])} -> {_f(ar[s][-1])}'
-                                          for s in inclined),
+                                           for s in inclined),
               'rise > 0.01, no fall > 0.005 between grid points', all(rises(s) for s in inclined)),
         Claim('K2', 'Sec. 5.2, Fig. 10', 'AR rises with stiffness on the level too', 'rises',
               f'0 deg {_f(ar[0.0][0])} -> {_f(ar[0.0][-1])}',
               'rise > 0.01, no fall > 0.005', rises(0.0),
               why='Our level AR does not depend on the tangential stiffness (within 0.005): '
-              'with no slope and no tether the mean thrust needed is zero, the tips\' shear '
+              "with no slope and no tether the mean thrust needed is zero, the tips' shear "
               'springs only trade forces between one another and the robot never leans on the '
-              'surface\'s compliance. The paper\'s text does not single out the level '
-              'curve, and its figure\'s values are not in the text we have; any level rise '
+              "surface's compliance. The paper's text does not single out the level "
+              "curve, and its figure's values are not in the text we have; any level rise "
               'there must come from details of its contact implementation that it does not '
               'give (e.g. how its anchors are reset).'),
         Claim('K3', 'Sec. 5.2, Fig. 10', 'strong effect below 600 N/m, weak above (30, 60, 90 '
@@ -318,7 +317,7 @@ def worm_claims(data: Data) -> List[Claim]:
                          '100-1000 N/m for 0, 30, 60, 90 deg (COF 1)', 'wave > worm',
                          'margin ' + '; '.join(worst), 'wave AR > worm AR at every point',
                          beats))
-        out.append(Claim('W6', 'Sec. 7, Fig. 20', 'the wave\'s advantage narrows as the surface '
+        out.append(Claim('W6', 'Sec. 7, Fig. 20', "the wave's advantage narrows as the surface "
                          'stiffens', 'narrows', 'the margin is smallest at the stiffest point'
                          + (' for every slope' if narrows else ' not for every slope'),
                          'smallest margin at 1000 N/m', narrows))
@@ -338,8 +337,8 @@ def worm_claims(data: Data) -> List[Claim]:
                          min(res[0.5]) > 0 and min(res[1.0]) > 0,
                          why='At COF 0.5 the reconstructed worm (P = mu F_m + m g sin a) keeps '
                          'most of its stroke, and our wave does not beat it at every slope. The '
-                         'worm\'s friction term mu F_m is calibrated at COF 1 only; the paper\'s '
-                         'reference [24] may scale the moving cell\'s drag with mu differently.'))
+                         "worm's friction term mu F_m is calibrated at COF 1 only; the paper's "
+                         "reference [24] may scale the moving cell's drag with mu differently."))
     return out
 
 

@@ -65,7 +65,8 @@ def format_info(info: dict) -> str:
     if info.get('damage'):
         total = info.get('expected_messages')
         of = f' of {total}' if total is not None else ''
-        lines.append(f'State:             DAMAGED, salvaged: {info["messages"]}{of} messages read, '
+        lines.append(f'State:             DAMAGED, salvaged: {info["messages"]}{of} messages '
+                     'read, '
                      f'{len(info["damage"])} damaged place(s) skipped')
         lines += [f'Damaged:           {d.describe()}' for d in info['damage']]
     if not info['complete']:

@@ -1,11 +1,11 @@
 """
 Measure the figures each issue names and print them (``--json``: one JSON object).
 
-Every module in ``saw_ros/bench/`` contributes its keys; ``--only`` picks modules.
-Subprocess logs go to one folder per run (``--logs``, default ``out/bench_<date-time>/``,
-made and printed on stderr when a module first needs it). A module that fails anyway (an exception) does not end the bench: its keys
-are null, ``bench_errors`` says why (the traceback is in ``<logs>/<module>.error``), the other
-modules run and the exit code is 1.
+Every module in ``saw_ros/bench/`` contributes its keys; ``--only`` picks modules. Subprocess logs
+go to one folder per run (``--logs``, default ``out/bench_<date-time>/``, made and printed on
+stderr when a module first needs it). A module that fails anyway (an exception) does not end the
+bench: its keys are null, ``bench_errors`` says why (the traceback is in
+``<logs>/<module>.error``), the other modules run and the exit code is 1.
 """
 import importlib
 import json
@@ -55,7 +55,7 @@ def run(args):
             error.write_text(traceback.format_exc())
             errors[name] = f'{type(exc).__name__}: {exc} (see {error})'
             print(f'bench: {name} failed: {errors[name]}', file=sys.stderr, flush=True)
-            figures = {key: None for key in getattr(module, 'KEYS', ())}
+            figures = dict.fromkeys(getattr(module, 'KEYS', ()))
         results.update(figures)
         if not args.json:
             print(f'[{name}] ({time.perf_counter() - start:.1f} s)')

@@ -17,7 +17,8 @@ from pathlib import Path
 import sys
 import time
 
-from saw_ros.analysis.campaign import PAPER_SLOPES_DEG, PAPER_VOLTAGES, run_campaign, summarise, write_outputs
+from saw_ros.analysis.campaign import (PAPER_SLOPES_DEG, PAPER_VOLTAGES, run_campaign,
+                                       summarise, write_outputs)
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
 from saw_ros.core.params import ParameterError
 from saw_ros.interface.config import config_path
@@ -37,8 +38,8 @@ def _numbers(text, name):
 
 def add_arguments(p):
     p.add_argument('--slopes', default=','.join(f'{s:g}' for s in PAPER_SLOPES_DEG),
-                   help='slopes in degrees, comma-separated; write --slopes=-20,0 when the list starts '
-                   'with a minus (default: -20,-10,0,10,20)')
+                   help='slopes in degrees, comma-separated; write --slopes=-20,0 when the list '
+                   'starts with a minus (default: -20,-10,0,10,20)')
     p.add_argument('--voltages', default=','.join(f'{v:g}' for v in PAPER_VOLTAGES),
                    help='motor voltages, comma-separated (default: 4,5,6,7)')
     p.add_argument('--out', type=Path, default=Path('out/campaign'), help='output folder')
@@ -47,7 +48,7 @@ def add_arguments(p):
                    'slope_deg, voltage_V or frequency_hz, px_per_m or marker_spacing_m, notes '
                    '(paths relative to it); --slopes/--voltages/--reference do not apply')
     p.add_argument('--reference', type=Path, default=None,
-                   help='CSV of measured speeds/ARs (default: the paper\'s stated points)')
+                   help="CSV of measured speeds/ARs (default: the paper's stated points)")
     p.add_argument('--workers', type=int, default=2, help='parallel processes (2)')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     add_scenario_arguments(p)

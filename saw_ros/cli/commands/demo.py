@@ -4,9 +4,9 @@ The main job: the full ROS graph on the default scenario, then the comparison an
 Starts simulator, camera, vision, comparison and recorder as separate processes in a private DDS
 domain, runs about 10 s of simulated time, prints the comparison (AR of simulation and tracking,
 their relative error, v_theory), leaves the recording in bags/ and the report (report.png,
-comparison.json, camera.mp4, the nodes' logs) in the output folder it names. The recording holds every topic but
-the raw camera frames (camera.mp4 has them). Ctrl-C stops every
-process it started. Exit code 1 if any node failed.
+comparison.json, camera.mp4, the nodes' logs) in the output folder it names. The recording holds
+every topic but the raw camera frames (camera.mp4 has them). Ctrl-C stops every process it started.
+Exit code 1 if any node failed.
 """
 from pathlib import Path
 import sys

@@ -18,7 +18,7 @@ import sys
 
 from saw_ros.cli.errors import UserError
 
-HELP = 'regenerate the paper\'s figures (PNG + CSV) and the fidelity report'
+HELP = "regenerate the paper's figures (PNG + CSV) and the fidelity report"
 
 
 def add_arguments(p):

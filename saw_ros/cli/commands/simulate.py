@@ -46,7 +46,8 @@ def scenario_from_args(args) -> Scenario:
     values = {}
     simple = {'slope_deg': ('conditions.slope', math.radians),
               'gap_mm': ('conditions.gap', lambda v: v / 1000.0),
-              'kn': ('surface.normal_stiffness', float), 'kt': ('surface.tangential_stiffness', float),
+              'kn': ('surface.normal_stiffness', float),
+              'kt': ('surface.tangential_stiffness', float),
               'mu': ('surface.friction_coefficient', float),
               'external_force': ('conditions.external_force', float),
               'frequency': ('conditions.frequency', float), 'voltage': ('motor.voltage', float)}
@@ -104,7 +105,8 @@ def run(args):
     c = scenario.conditions
     print(f'scenario: slope {math.degrees(c.slope):.1f} deg, gap {c.gap * 1000:.1f} mm, '
           f'f {scenario.frequency:.3f} Hz, kn {scenario.surface.normal_stiffness:g} N/m^'
-          f'{scenario.surface.hertz_exponent:g}, kt {scenario.surface.tangential_stiffness:g} N/m, '
+          f'{scenario.surface.hertz_exponent:g}, '
+          f'kt {scenario.surface.tangential_stiffness:g} N/m, '
           f'mu {scenario.surface.friction_coefficient:g}, F_ext {c.external_force:g} N, '
           f'{duration:g} s')
     print(f'v_theory            {m.v_theory * 100:8.3f} cm/s')

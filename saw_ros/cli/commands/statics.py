@@ -25,12 +25,12 @@ def add_arguments(p):
 
 def run(args):
     from saw_ros.core.dynamics import GRAVITY
-    from saw_ros.core.statics import (FIGURE4_CASES, StaticCase, minimal_normal_forces,
-                                top_surface_needed_above)
+    from saw_ros.core.statics import (FIGURE4_CASES, minimal_normal_forces, StaticCase,
+                                      top_surface_needed_above)
     if not -90.0 <= args.slope_deg <= 90.0:
         raise UserError(f'--slope-deg {args.slope_deg} must be in [-90, 90]')
     if (args.fext_mg is None) != (args.mu is None):
-        raise UserError('give both --fext-mg and --mu, or neither (Figure 4\'s cases)')
+        raise UserError("give both --fext-mg and --mu, or neither (Figure 4's cases)")
     if args.mu is not None and not args.mu > 0:
         raise UserError(f'--mu {args.mu} must be > 0')
     if args.mass <= 0:

@@ -67,10 +67,10 @@ def config_options():
             kind = next(a for a in args if a is not type(None))
         if typing.get_origin(kind) is tuple:
             item = typing.get_args(kind)[0]
-            kw = dict(type=_numbers(item, (len(typing.get_args(kind)),)),
-                      metavar=','.join('ABCDEFGH'[:len(typing.get_args(kind))]))
+            kw = {'type': _numbers(item, (len(typing.get_args(kind)),)),
+                  'metavar': ','.join('ABCDEFGH'[:len(typing.get_args(kind))])}
         else:
-            kw = dict(type=kind)
+            kw = {'type': kind}
         default = f.default
         shown = 'none' if default is None else f'{default:.6g}' if isinstance(default, float) \
             else default
@@ -129,11 +129,11 @@ def run(args):
         raise UserError(f'--px-per-m = {args.px_per_m} must be > 0')
     if args.px_per_m is None and config.marker_spacing is None:
         raise UserError('give the scale: --px-per-m (pixels per metre, from a ruler in the '
-                        'picture) or --marker-spacing-m (the markers\' distance on the robot)')
+                        "picture) or --marker-spacing-m (the markers' distance on the robot)")
     if (args.dist_coeffs is None) != (args.camera_matrix is None):
         raise UserError('--dist-coeffs and --camera-matrix go together (the lens calibration)')
-    camera_kw = dict(slope=math.radians(args.slope_deg), center_x=args.center_x,
-                     center_y=args.center_y, mirror=args.mirror)
+    camera_kw = {'slope': math.radians(args.slope_deg), 'center_x': args.center_x,
+                 'center_y': args.center_y, 'mirror': args.mirror}
     if args.dist_coeffs is not None:
         camera_kw.update(dist_coeffs=args.dist_coeffs, dist_matrix=args.camera_matrix)
     try:

@@ -40,6 +40,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 KEEP = 2.0          # s of simulated time kept in the pose buffers
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)
 
+
 def _described(entry, more: str):
     """A spec entry with ``more`` added to its description."""
     name, default, meta = entry

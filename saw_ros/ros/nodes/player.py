@@ -144,7 +144,7 @@ class Player(Node):
             time.sleep(0.02)     # discovery runs in the DDS threads; nothing to spin here
         if self._subscriber_count() < need:
             self.get_logger().warning(f'only {self._subscriber_count()} of {need} subscriptions '
-                                   'after 10 s; playing anyway')
+                                      'after 10 s; playing anyway')
         rate = float(self.p['rate'])
         clock_period = int(1e9 / self.p['clock_rate']) if self.clock_from_log else None
         next_clock = None
@@ -178,7 +178,6 @@ class Player(Node):
         delay = deadline - time.monotonic()
         if delay > SLEEP_MIN:
             time.sleep(delay)
-
 
     def start_services(self) -> None:
         """

@@ -22,7 +22,7 @@ import os
 from pathlib import Path
 import sys
 import time
-from typing import Iterator, Optional, Tuple
+from typing import Iterator, Optional
 
 # FFmpeg's own messages about a damaged file ("moov atom not found") would come before our
 # one-line refusal: quiet (the refusal says it); set before OpenCV loads FFmpeg.

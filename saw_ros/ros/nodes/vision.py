@@ -106,8 +106,8 @@ class VisionNode(Node):
         except (ParameterException, ValueError, TypeError) as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from exc
         self.p = p
-        self.pose_kw = dict(slope=float(p['slope']), center_x=float(p['center_x']),
-                            center_y=float(p['center_y']), mirror=bool(p['mirror']))
+        self.pose_kw = {'slope': float(p['slope']), 'center_x': float(p['center_x']),
+                        'center_y': float(p['center_y']), 'mirror': bool(p['mirror'])}
         self.tracker = None
         self.info = None
         self._pending = deque(maxlen=PENDING)
