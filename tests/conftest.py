@@ -13,7 +13,7 @@ if not os.environ.get('DISABLE_ROS_ISOLATION'):
 
 @pytest.fixture
 def ros_context():
-    """A private rclpy Context, shut down after the test (no global state across tests)."""
+    """Yield a private rclpy Context, shut down after the test (no global state across tests)."""
     import rclpy
     from rclpy.context import Context
     context = Context()

@@ -73,7 +73,9 @@ VELOCITY_WINDOW = 0.010   # s
 
 def velocity_on_grid(t: np.ndarray, x: np.ndarray, window: float = VELOCITY_WINDOW):
     """
-    (grid, v): x resampled every median sample interval, v its centred difference over ``window``.
+    Return (grid, v) of a sampled position.
+
+    x resampled every median sample interval, v its centred difference over ``window``.
     """
     step = float(np.median(np.diff(t)))
     grid = np.arange(t[0] + window / 2, t[-1] - window / 2 + 1e-12, step)

@@ -54,6 +54,7 @@ class ManifestError(ValueError):
 @dataclass
 class FootageRun:
     """One manifest row."""
+
     video: Path
     slope_deg: float
     voltage: Optional[float] = None
@@ -72,7 +73,7 @@ class FootageRun:
 
 
 def load_manifest(path) -> List[FootageRun]:
-    """The rows of a manifest; video paths relative to the manifest's folder."""
+    """Return the rows of a manifest; video paths relative to the manifest's folder."""
     path = Path(path)
     if not path.is_file():
         raise ManifestError(f'no such manifest: {path}')
@@ -140,8 +141,11 @@ class Measured:
 
 
 def clip_speed(t, x, frequency: float) -> tuple:
-    """(speed, window): least-squares slope of x over the whole wave cycles at the end of the
-    samples (all of them when shorter than a cycle)."""
+    """
+    Return (speed, window): the least-squares slope of x over the last whole wave cycles.
+
+    Over all the samples when they are shorter than a cycle.
+    """
     t, x = np.asarray(t, float), np.asarray(x, float)
     if t.size < 3:
         return float('nan'), 0.0
@@ -320,7 +324,7 @@ SAMPLES = (                      # name, slope (deg), voltage, cluttered
 
 def clutter_for(camera, gap: float, t_end: float, flicker: float = 0.0):
     """
-    A busy scene for a clip seen by ``camera``.
+    Return a busy scene for a clip seen by ``camera``.
 
     Red, orange-red and orange things (one passing in front), a magenta disc and a third pink
     marker on the wall away from the robot's line, a lighting gradient and optionally flicker

@@ -71,6 +71,7 @@ class Damage:
     A chunk (``chunk`` = its number, from 1), or another part of the file (``chunk`` None: a
     record, the data section, the summary).
     """
+
     file: str
     offset: Optional[int]                 # where in the file (None: not one place)
     reason: str
@@ -250,7 +251,7 @@ def _finished_only(summary: _Summary) -> _Summary:
 
 
 def _open_chunk(body) -> bytes:
-    """The uncompressed records of a chunk record's body, their CRC checked."""
+    """Return the uncompressed records of a chunk record's body, their CRC checked."""
     _, _, size, crc = _CHUNK.unpack_from(body)
     pos = _CHUNK.size
     name_length, = _U32.unpack_from(body, pos)
@@ -313,7 +314,11 @@ class BagReader:
 
     @property
     def complete(self) -> bool:
-        """False once a scan met an unfinished file (no summary: the recorder was killed)."""
+        """
+        Return False once a scan met an unfinished file.
+
+        (No summary: the recorder was killed.)
+        """
         return not any(n is not None for n in self._tail.values())
 
     @property
@@ -327,7 +332,7 @@ class BagReader:
         return [d for f in self.files for d in self._damage.get(f, [])]
 
     def damage_report(self) -> str:
-        """What is damaged (a line each) and how many messages are readable."""
+        """Return what is damaged (a line each) and how many messages are readable."""
         lines = [d.describe() for d in self.damage]
         read = sum(self._read.values())
         total = self.expected_messages()
@@ -532,7 +537,7 @@ class BagReader:
     def _chunk_damage(path, offset, number, summary: _Summary, index: Optional[ChunkIndex],
                       reason: str, body=None) -> Damage:
         """
-        A damaged chunk, with its log time range from the summary's chunk index.
+        Return a damaged chunk, with its log time range from the summary's chunk index.
 
         (else from the chunk record itself).
         """

@@ -78,7 +78,7 @@ def _dependencies(text: str, package: str) -> list:
 
 @functools.lru_cache(maxsize=None)
 def message_definition(type_name: str) -> str:
-    """The ``ros2msg`` schema text of ``type_name`` (``geometry_msgs/msg/PoseStamped``)."""
+    """Return the ``ros2msg`` schema text of ``type_name`` (``geometry_msgs/msg/PoseStamped``)."""
     seen: Set[str] = set()
 
     def append(name: str, depth: int) -> str:

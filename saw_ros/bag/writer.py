@@ -360,7 +360,7 @@ class BagWriter:
 
     # ---- metadata
     def metadata(self) -> dict:
-        """The ``rosbag2_bagfile_information`` mapping (metadata.yaml version 9)."""
+        """Return the ``rosbag2_bagfile_information`` mapping (metadata.yaml version 9)."""
         start = self._start if self._start is not None else time.time_ns()
         duration = (self._end - self._start) if self._start is not None else 0
         return {

@@ -19,7 +19,7 @@ _announced = []
 
 
 def logs_root() -> Path:
-    """The folder of this bench run's logs (made and announced on first use)."""
+    """Return the folder of this bench run's logs (made and announced on first use)."""
     root = os.environ.get(LOGS_ENV)
     if not root:
         root = str(Path('out') / time.strftime('bench_%Y-%m-%d_%H-%M-%S'))
@@ -40,7 +40,7 @@ def log_dir(module: str) -> Path:
 
 
 def tail(path: Path, lines: int = 5) -> str:
-    """The last lines of a log, for a failed rung's report."""
+    """Return the last lines of a log, for a failed rung's report."""
     try:
         return '\n'.join(Path(path).read_text(errors='replace').splitlines()[-lines:])
     except OSError:

@@ -24,7 +24,7 @@ def _rate(sim, steps, repeats=3):
 
 
 def batch_scenarios(count=256):
-    """A realistic sweep: slopes 0-90 deg by COF by gap, all different."""
+    """Return a realistic sweep: slopes 0-90 deg by COF by gap, all different."""
     grid = [(s, mu, g) for g in (0.040, 0.045, 0.050) for mu in (0.2, 0.5, 1.0)
             for s in np.linspace(0, 90, 29)]
     return [Scenario().with_values({'conditions.slope': math.radians(s),

@@ -1,5 +1,7 @@
-"""Node ``loadgen``: publishes the simulator's and the camera's topic types at fixed rates with
-counted messages, to test and benchmark the recorder without the simulator.
+"""
+Node ``loadgen``: the simulator's and the camera's topic types at fixed rates.
+
+It publishes counted messages, to test and benchmark the recorder without the simulator.
 
 Parameters: ``rate`` (Hz, for each 1 kHz-class topic), ``duration`` (s), ``streams`` (how many of
 clock, pose, twist, contacts, contact_wrench, joint_states: 0-6), ``image_fps`` (0: no images),

@@ -124,7 +124,7 @@ def _missing(stamps: List[int], expected: List[int]) -> int:
 
 
 def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
-    """The loss figures of one run (see the module docstring)."""
+    """Return the loss figures of one run (see the module docstring)."""
     from saw_ros.bag import BagReader
     from saw_ros.ros.cdr import stamp_ns
     streams = tuple(t.name for t in topics.published_by('simulator'))  # /clock + 5 streams
@@ -272,7 +272,7 @@ def run(quick: bool = False) -> dict:
 
 def main(argv: List[str]) -> int:
     import argparse
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     p.add_argument('--rtf', type=float, default=None, help='one rung only')
     p.add_argument('--duration', type=float, default=DURATION)
     p.add_argument('--keep', type=Path, default=None,

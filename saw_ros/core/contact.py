@@ -91,7 +91,7 @@ class ContactState:
 
 def hysteresis_factor(rate, restitution, hysteresis_speed):
     """
-    The force factor for a deformation rate (m/s): 1 loading, e unloading, linear between.
+    Return the force factor for a deformation rate (m/s): 1 loading, e unloading, linear between.
 
     -v0 and v0 (pure, for tests and plots).
     """

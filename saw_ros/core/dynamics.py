@@ -106,7 +106,7 @@ class Simulator:
 
         def per_scenario(get):
             """
-            A scalar where every scenario agrees.
+            Return a scalar where every scenario agrees.
 
             (sweeps vary one or two parameters: scalar operands are the cheapest), else one value
             per scenario broadcast to (S, P) once (a same-shape operand is 2-3x faster than an (S,
@@ -141,7 +141,7 @@ class Simulator:
                                   -GRAVITY * np.cos(slope), np.zeros(self.count)]) * self.dt
 
     def reset(self) -> None:
-        """Initial state (model.md): centred in the gap, at rest, wave phase 0."""
+        """Go back to the initial state (model.md): centred in the gap, at rest, wave phase 0."""
         self.q[:] = 0.0
         self.q[1] = [s.conditions.gap / 2.0 for s in self.scenarios]
         self.phase[:] = 0.0

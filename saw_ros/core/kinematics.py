@@ -44,7 +44,7 @@ class LinkGeometry:
 
 def hinge_x(robot: RobotParams) -> float:
     """
-    The wave occupies the rear of the body.
+    Return the wave occupies the rear of the body.
 
     The COM sits at the middle of the robot's length (a uniform bar, as the default pitch inertia
     assumes).
@@ -150,7 +150,7 @@ def v_theory(robot: RobotParams, frequency: float) -> float:
 
 
 def cycle_phases(samples: int) -> np.ndarray:
-    """The samples + 1 phases 0 .. 2 pi (both ends) a PhaseTable is built from."""
+    """Return the samples + 1 phases 0 .. 2 pi (both ends) a PhaseTable is built from."""
     return np.linspace(0.0, 2.0 * np.pi, samples + 1)
 
 

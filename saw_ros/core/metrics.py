@@ -25,7 +25,7 @@ STEADY_CCI = 0.02   # the paper's first convergence threshold (2 %)
 
 def cci(t, v, frequency: float, scale: Optional[float] = None):
     """
-    (times, CCI) for every sample with a full cycle after it.
+    Return (times, CCI) for every sample with a full cycle after it.
 
     ``scale`` defaults to |mean v| over the last two cycles (the steady part of a run that
     converged).
@@ -55,7 +55,7 @@ def rms_scale(v, t, frequency: float) -> float:
 
 def velocity_cci(t, q, frequency: float):
     """
-    (times, {'vx', 'vy', 'w': CCI}) of the velocities of q (n, 6) = x, y, theta, vx, vy, w.
+    Return (times, {'vx', 'vy', 'w': CCI}) of the velocities of q (n, 6) = x, y, theta, vx, vy, w.
 
     Vx scaled by its steady mean, vy and w by their steady RMS (module docstring).
     """

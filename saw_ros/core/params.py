@@ -25,7 +25,7 @@ def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
          high: Optional[float] = None, low_open: bool = False, high_open: bool = False,
          **extra: Any):
     """
-    A dataclass field with its unit, range and description kept beside the default.
+    Return a dataclass field with its unit, range and description kept beside the default.
 
     ``extra`` goes into the metadata as well (e.g. ``flag``: a command-line flag other than
     ``--<name>``). Used by the Scenario's groups here and by the vision layer's dataclasses
@@ -40,7 +40,7 @@ def spec_meta(unit: str, description: str, low: Optional[float] = None,
               high: Optional[float] = None, low_open: bool = False, high_open: bool = False,
               **extra: Any) -> Dict[str, Any]:
     """
-    The metadata of a spec() field, for a parameter that is no dataclass field.
+    Return the metadata of a spec() field, for a parameter that is no dataclass field.
 
     (a node's own: its topics, its frame rate...).
     """
@@ -109,7 +109,7 @@ class _Validated:
         self._check()
 
     def _check(self):
-        """Checks that involve several fields."""
+        """Check that involve several fields."""
 
     def replace(self, **changes):
         return dataclasses.replace(self, **changes)
@@ -272,7 +272,9 @@ class Scenario:
     @property
     def frequency_source(self) -> str:
         """
-        Which parameter drives the helix: motor.voltage when above 0, else conditions.frequency.
+        Return the parameter that drives the helix.
+
+        motor.voltage when above 0, else conditions.frequency.
         """
         if self.motor.voltage > 0.0:
             return f'motor.voltage = {self.motor.voltage:g} V; conditions.frequency ignored'
@@ -293,7 +295,11 @@ class Scenario:
                 yield f'{section}.{f.name}', getattr(group, f.name), dict(f.metadata)
 
     def with_values(self, values: Dict[str, Any]) -> 'Scenario':
-        """A new, validated Scenario with dotted-name values changed; unknown names raise."""
+        """
+        Return a new, validated Scenario with dotted-name values changed.
+
+        Unknown names raise.
+        """
         groups = {s: {} for s in self.SECTIONS}
         for name, value in values.items():
             section, _, key = name.partition('.')

@@ -117,7 +117,7 @@ def _load(worm: WormParams, scenario: Scenario) -> float:
 
 
 def closed_form(scenario: Scenario, worm: WormParams = WormParams()) -> WormResult:
-    """The reconstructed analytic worm (module docstring, model 1) on the scenario's surface."""
+    """Return the reconstructed analytic worm (module docstring, model 1) on this surface."""
     n, s = worm.cells, worm.stroke
     mu = scenario.surface.friction_coefficient
     k = scenario.surface.tangential_stiffness
@@ -130,7 +130,7 @@ def closed_form(scenario: Scenario, worm: WormParams = WormParams()) -> WormResu
 
 
 def zero_advance_stiffness(scenario: Scenario, worm: WormParams = WormParams()) -> float:
-    """Closed form: the tangential stiffness below which the worm makes no progress, N/m."""
+    """Return the stiffness kt (N/m, closed form) below which the worm makes no progress."""
     return worm.cells * _load(worm, scenario) / ((worm.cells - 1) * worm.stroke)
 
 
@@ -156,7 +156,7 @@ def _equilibrium(b, k, cap, demand):
 def contact_law(scenarios, worm: WormParams = WormParams(), cycles: int = 3,
                 increments: int = 10) -> list:
     """
-    The worm's cells meeting the wave's contact law quasi-statically.
+    Return the worm's cells meeting the wave's contact law quasi-statically.
 
     (module docstring, model 2), for a list of scenarios at once. AR from the last cycle: 3 cycles
     of 10 increments per step agree with 8 cycles of 200 to 5e-4 in AR.

@@ -31,7 +31,7 @@ _held: 'collections.OrderedDict[int, object]' = collections.OrderedDict()
 
 def reserve_domain() -> int:
     """
-    A DDS domain id that no other run of ours on this machine holds.
+    Return a DDS domain id that no other run of ours on this machine holds.
 
     A random id alone collides between concurrent runs (tests, benchmarks, the main job): the
     other run's nodes then appear in ours. Each id has a lock file; this process holds the lock of

@@ -19,7 +19,7 @@ CONFIG_DIR = Path(__file__).resolve().parents[2] / 'msg_config'
 
 def config_path(name: str) -> Path:
     """
-    A file of msg_config/.
+    Return a file of msg_config/.
 
     From the source tree (a checkout, an editable install), else from the installed
     ``share/saw_ros/msg_config`` (pip or colcon install, found from this package's own location,
@@ -47,7 +47,7 @@ def flatten(tree: Dict[str, Any], prefix: str = '') -> Dict[str, Any]:
 
 
 def load_parameters(path: Path, node: Optional[str] = None) -> Dict[str, Any]:
-    """The flat parameter dict of one node's section (or the only / wildcard section)."""
+    """Return the flat parameter dict of one node's section (or the only / wildcard section)."""
     path = Path(path)
     if not path.exists():
         raise ParameterError(f'parameter file {path} does not exist')

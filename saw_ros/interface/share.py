@@ -51,7 +51,7 @@ def python_locations(package: str) -> List[str]:
 
 def prefix_above(path: str, package: str) -> Optional[str]:
     """
-    The nearest folder above ``path`` that is an install prefix of ``package``.
+    Return the nearest folder above ``path`` that is an install prefix of ``package``.
 
     Symbolic links are not resolved: a colcon --symlink-install prefix links its files into the
     build folder, and the prefix is where the link is, not where it points.
@@ -67,7 +67,7 @@ def prefix_above(path: str, package: str) -> Optional[str]:
 
 
 def ament_prefixes(package: str) -> List[str]:
-    """The prefixes of ``AMENT_PREFIX_PATH`` that list ``package`` in their ament index."""
+    """Return the prefixes of ``AMENT_PREFIX_PATH`` that list ``package`` in their ament index."""
     value = os.environ.get('AMENT_PREFIX_PATH', '')
     return [p for p in value.split(os.pathsep) if p and os.path.isfile(
         os.path.join(p, 'share', 'ament_index', 'resource_index', 'packages', package))]

@@ -96,12 +96,12 @@ def published_by(node: str) -> Tuple[Topic, ...]:
 
 
 def recorded_topics() -> List[str]:
-    """What the recorder records by default: every topic of the table but the raw frames."""
+    """Return what the recorder records by default: every topic of the table but the raw frames."""
     return [t.name for t in TOPICS if t.recorded]
 
 
 def record_topics_yaml() -> str:
-    """The text of msg_config/record_topics.yaml."""
+    """Return the text of msg_config/record_topics.yaml."""
     lines = ['# Generated from saw_ros/interface/topics.py (python -m saw_ros.interface.topics',
              '# --write-record-yaml msg_config/record_topics.yaml); '
              'tests/interface/test_topics.py pins it.',

@@ -41,7 +41,7 @@ BOTTOM, TOP = 0, 1
 
 
 def dt_nanoseconds(dt: float) -> int:
-    """The step as an integer number of nanoseconds (stamps are steps * this)."""
+    """Return the step as an integer number of nanoseconds (stamps are steps * this)."""
     ns = int(round(dt * NS_PER_S))
     if ns <= 0 or abs(ns - dt * NS_PER_S) > 1e-3:
         raise ValueError(f'time step {dt!r} s is not a whole number of nanoseconds')
@@ -127,7 +127,7 @@ def points_of(msg: PointCloud2) -> np.ndarray:
 
 def body_axes(fx: float, fy: float, theta: float):
     """
-    A surface-frame force (fx, fy) in ``base_link`` axes.
+    Return a surface-frame force (fx, fy) in ``base_link`` axes.
 
     Turned by -theta (a moment about z does not change when the axes turn about z).
     """
@@ -215,7 +215,9 @@ class ContactsCdr:
 
 class JointStateCdr:
     """
-    JointState with fixed names as CDR: position and velocity float64[len(names)], effort empty.
+    JointState with fixed names as CDR.
+
+    Position and velocity float64[len(names)], effort empty.
     """
 
     def __init__(self, names: Sequence[str]):

@@ -31,9 +31,10 @@ _TYPES = ((bool, ParameterType.PARAMETER_BOOL), (int, ParameterType.PARAMETER_IN
 
 def descriptor(name: str, value, meta: Dict, read_only: bool = False) -> ParameterDescriptor:
     """
-    ParameterDescriptor for one spec() entry.
+    Return the ParameterDescriptor for one spec() entry.
 
-    (a Scenario's, a vision dataclass's or a node's own): description [unit], range, constraints.
+    The entry is a Scenario's, a vision dataclass's or a node's own; the descriptor has its
+    description [unit], range, constraints.
     ``ros_range=False`` in the metadata: no ROS range, the node checks the bounds itself (with its
     own message).
     """
@@ -76,7 +77,7 @@ def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> N
 def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: bool = True
                  ) -> Dict[str, object]:
     """
-    Declares spec() entries (name, default, metadata) on ``node`` with their descriptors.
+    Declare spec() entries (name, default, metadata) on ``node`` with their descriptors.
 
     (read-only by default: read at start-up only; an entry's ``read_only`` metadata decides for it)
     and returns {name: value}. An integer given for a double (``-p fps:=30``) is taken as a double.
@@ -136,7 +137,7 @@ class ScenarioParameters:
         return None
 
     def check(self, parameters) -> Tuple[Optional[Scenario], str]:
-        """(new Scenario, '') if the parameters are acceptable, else (None, reason)."""
+        """Return (new Scenario, '') if the parameters are acceptable, else (None, reason)."""
         values = {}
         for p in parameters:
             if not self.owns(p.name):
@@ -169,7 +170,11 @@ class ScenarioParameters:
 
 
 def spec_comment(value, meta: Dict) -> str:
-    """The YAML comment of a spec() entry: range and unit of a number, then its description."""
+    """
+    Return the YAML comment of a spec() entry.
+
+    Range and unit of a number, then its description.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, float)) or 'low' not in meta:
         unit = meta.get('unit') or ''
         return meta['description'] + (f' [{unit}]' if unit else '')
@@ -184,7 +189,7 @@ def yaml_text(node_name: str, header: str, own: Iterable[Tuple[str, object, obje
               scenario: Optional[Scenario] = None, exclude: Iterable[str] = (),
               with_scenario: bool = True) -> str:
     """
-    A parameters file for ``--ros-args --params-file``.
+    Return a parameters file for ``--ros-args --params-file``.
 
     ``own`` (name, value, comment or spec() metadata) entries first, then (``with_scenario``) every
     Scenario parameter, nested by section, each with its unit, range and description in a comment.

@@ -75,12 +75,12 @@ _PROFILES = {'stream': STREAM_QOS, 'clock': CLOCK_QOS, 'image': IMAGE_QOS,
 
 
 def profile(name: str) -> QoSProfile:
-    """The QoS a subscriber of a topic with the table's profile ``name`` asks for."""
+    """Return the QoS a subscriber of a topic with the table's profile ``name`` asks for."""
     return _PROFILES[name]
 
 
 def publisher_profile(name: str) -> QoSProfile:
-    """The QoS our publishers offer on a topic with the table's profile ``name``."""
+    """Return the QoS our publishers offer on a topic with the table's profile ``name``."""
     if name in ('stream', 'clock'):
         return with_depth(_PROFILES[name], PUBLISHER_DEPTH)
     if name == 'image':

@@ -18,8 +18,8 @@ import time
 from typing import Callable, List, Optional
 
 # The QoS profiles live in saw_ros.ros.qos; importable from here for older importers.
-from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, image_publisher_qos, IMAGE_QOS,  # noqa: F401,E501
-                             INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth)
+from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, image_publisher_qos,  # noqa: F401
+                             IMAGE_QOS, INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth)
 
 
 # s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.
@@ -32,9 +32,9 @@ class NodeFailure(RuntimeError):
 
 def make_executor(context=None):
     """
-    rclpy's EventsExecutor.
+    Return rclpy's EventsExecutor where available, else the SingleThreadedExecutor.
 
-    (C++; Jazzy: rclpy.experimental) where available, else the SingleThreadedExecutor. The events
+    The EventsExecutor is C++ (Jazzy: rclpy.experimental). The events
     executor takes and dispatches a message for a fraction of the SingleThreadedExecutor's
     per-message cost (it does not rebuild a wait set each time), which is most of what a Python
     node at 1 kHz spends.
@@ -56,6 +56,7 @@ class _StopRequest:
     ``run()``): there nothing is half-done in rclpy, and the context stays valid for ``close()``.
     Never in an executor's callbacks, never while the node is built or closed.
     """
+
     requested = False
     interrupt = False
 
@@ -199,7 +200,7 @@ def flush(node, timeout: float = FLUSH_TIMEOUT) -> List[str]:
 
 def _close(node) -> None:
     """
-    The node's ``close()`` (if any: it may still publish), ``flush()``, then ``destroy_node()``.
+    Call the node's ``close()`` (if any: it may still publish), ``flush()``, ``destroy_node()``.
 
     The context is still valid unless something else shut it down (then what failed because of it
     is a stop, not an error).

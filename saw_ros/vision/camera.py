@@ -105,7 +105,7 @@ class CameraModel:
 
     @property
     def distorted(self) -> bool:
-        """True when a lens distortion is set (any coefficient non-zero)."""
+        """Return True when a lens distortion is set (any coefficient non-zero)."""
         return any(k != 0.0 for k in self.dist_coeffs)
 
     def _dist_K(self) -> np.ndarray:
@@ -161,7 +161,7 @@ class CameraModel:
     @classmethod
     def from_intrinsics(cls, K, width: int, height: int, distance: float, **pose) -> \
             'CameraModel':
-        """A model from a K matrix (CameraInfo) and the distance to the plane of motion."""
+        """Return a model from a K matrix (CameraInfo) and the distance to the plane of motion."""
         K = np.asarray(K, dtype=float).reshape(3, 3)
         fx, fy = K[0, 0], K[1, 1]
         if not (fx > 0 and fy > 0):
@@ -172,7 +172,7 @@ class CameraModel:
                    cx=float(K[0, 2]), cy=float(K[1, 2]), **pose)
 
     def with_fov(self, horizontal_fov: float) -> 'CameraModel':
-        """The same camera with the scale set by a horizontal field of view (rad)."""
+        """Return the same camera with the scale set by a horizontal field of view (rad)."""
         focal = self.width / 2.0 / math.tan(horizontal_fov / 2.0)
         return replace(self, scale=focal / self.distance)
 

@@ -163,7 +163,7 @@ class Renderer:
         return img
 
     def _make_noise(self) -> np.ndarray:
-        """A pool of noise, split into its positive and negative parts for saturating adds."""
+        """Return a pool of noise, split into positive and negative parts for saturating adds."""
         cam = self.camera
         pad = 32
         n = self._rng.normal(0.0, self.options.noise, (cam.height + pad, cam.width + pad, 3))
@@ -202,12 +202,12 @@ class Renderer:
             self._fill(img, [poly], SILICONE)
 
     def _marker(self, img, centre: complex) -> None:
-        """A pink disc drawn from its exact (1-pixel ramp) coverage."""
+        """Return a pink disc drawn from its exact (1-pixel ramp) coverage."""
         self._disc(img, centre, self.options.marker_radius * self.camera.scale, PINK)
 
     @staticmethod
     def _disc(img, centre: complex, radius: float, colour) -> None:
-        """A disc (radius px, BGR colour) drawn from its exact (1-pixel ramp) coverage."""
+        """Return a disc (radius px, BGR colour) drawn from its exact (1-pixel ramp) coverage."""
         h, w = img.shape[:2]
         u0 = int(math.floor(centre.real - radius - 1))
         u1 = int(math.ceil(centre.real + radius + 2))
@@ -352,7 +352,7 @@ class StampedSeries:
 
     @classmethod
     def of(cls, t: Sequence[float], *columns: Sequence[float]) -> 'StampedSeries':
-        """A whole record at once: stamps ``t`` and one sequence per value column."""
+        """Return a whole record at once: stamps ``t`` and one sequence per value column."""
         series = cls()
         series.t = [float(s) for s in t]
         series.v = list(zip(*(np.asarray(c, float).tolist() for c in columns)))
@@ -398,7 +398,7 @@ class StampedSeries:
 
 
 def pose_between(poses: StampedSeries, phases: StampedSeries, t_ns: float) -> RobotPose:
-    """The pose at ``t_ns`` from streams of (x, y, theta) and (helix phase,) samples."""
+    """Return the pose at ``t_ns`` from streams of (x, y, theta) and (helix phase,) samples."""
     x, y, theta = poses.at(t_ns)
     (phase,) = phases.at(t_ns, wrap=True)
     return RobotPose(x, y, theta, phase % (2.0 * math.pi))

@@ -19,7 +19,7 @@ SCALE_FRAMES = 120      # ok frames the first pass measures the marker spacing o
 def track_video(path, camera_kw: dict, config: TrackerConfig, fps: float = 0.0,
                 stop_after_ok: int = 0):
     """
-    FrameResults of every frame of a video (or until ``stop_after_ok`` ok frames).
+    Return the FrameResults of every frame of a video (or until ``stop_after_ok`` ok frames).
 
     The camera's size comes from the file.
     """

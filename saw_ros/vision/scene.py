@@ -98,7 +98,7 @@ class SceneOptions:
         return self.gradient > 0 or self.flicker > 0
 
     def gain(self, t: float) -> float:
-        """The flicker's factor at time t."""
+        """Return the flicker's factor at time t."""
         return 1.0 + self.flicker * math.sin(2.0 * math.pi * self.flicker_hz * t)
 
     def occluded(self, point: complex, t: float, radius: float) -> bool:

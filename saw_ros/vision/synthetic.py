@@ -39,7 +39,7 @@ class Run:
         return start + np.arange(1, n) / fps
 
     def mean_speed(self, t_end: float, window: float) -> float:
-        """True mean speed over whole wave cycles ending at t_end (the ripple cancels)."""
+        """Return True mean speed over whole wave cycles ending at t_end (the ripple cancels)."""
         f = self.scenario.frequency
         span = math.floor(window * f + 1e-9) / f if f > 0 else window
         return float((np.interp(t_end, self.t, self.x) - np.interp(t_end - span, self.t, self.x))
@@ -86,7 +86,7 @@ def frames(run: Run, renderer: Renderer, times: Iterable[float],
 def cluttered_scene(run: Run, camera: CameraModel = CameraModel(), compression: str = 'jpeg',
                     quality: int = 70, cross_at: float = 3.0) -> SceneOptions:
     """
-    The hard case for a run of the default scenario.
+    Return the hard case for a run of the default scenario.
 
     (robot from x = 0 towards +x at about 5 cm/s) seen by ``camera``: red, orange-red and orange
     objects in the corners (the orange one moving, in front of everything), two magenta discs of a

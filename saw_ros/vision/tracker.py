@@ -81,6 +81,7 @@ from saw_ros.vision.camera import CameraModel
 
 class TrackStatus(StrEnum):
     """What a frame gave; the value is the text of messages and CSV files."""
+
     OK = 'ok'
     FRONT_LOST = 'front lost'
     BACK_LOST = 'back lost'
@@ -113,6 +114,7 @@ class TrackerConfig:
     ranges are those ``__post_init__`` checks (open bounds and the checks between fields stay
     there).
     """
+
     hue_min: int = spec(140, '', 'pink hue window lower end, OpenCV hue 0-179 (a window with '
                                  'min > max wraps through 0)', 0, 179)
     hue_max: int = spec(172, '', 'pink hue window upper end, OpenCV hue 0-179', 0, 179)
@@ -395,7 +397,9 @@ class Tracker:
     @property
     def last_time(self) -> Optional[float]:
         """
-        Time of the last frame given to ``update`` (None before the first): the next must be later.
+        Return the time of the last frame given to ``update`` (None before the first).
+
+        The next frame must be later.
         """
         return self._last_t
 
@@ -405,12 +409,12 @@ class Tracker:
 
     @property
     def spacing_px(self) -> Optional[float]:
-        """The marker spacing in ideal pixels as tracked so far (None before acquisition)."""
+        """Return the marker spacing in ideal pixels tracked so far (None before acquisition)."""
         return self._spacing
 
     def move_camera(self, camera: CameraModel) -> None:
         """
-        The camera moved parallel to the plane of motion.
+        Return the camera moved parallel to the plane of motion.
 
         (same size, scale and lens: a camera on a rail following the robot): tracking goes on, what
         is known in ideal pixels moves with the picture; positions and speeds stay continuous in
@@ -684,7 +688,7 @@ def steady_speed(times, x, window: float) -> Optional[float]:
 
 def scale_from_spacing(results, spacing: float) -> Optional[Tuple[float, int, float]]:
     """
-    The scale (px per metre) that makes the markers ``spacing`` m apart.
+    Return the scale (px per metre) that makes the markers ``spacing`` m apart.
 
     The median of the measured ``spacing_px`` of the ok frames over it, with the number of frames
     and the spread (half the 16-84 % range, px). None without an ok frame.

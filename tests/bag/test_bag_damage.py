@@ -37,7 +37,7 @@ def pose_bytes(i):
 
 @pytest.fixture(scope='module')
 def pristine(tmp_path_factory):
-    """A finished bag: /clock and /saw/pose at 1 kHz, 1.5 s, 8 KiB chunks."""
+    """Return a finished bag: /clock and /saw/pose at 1 kHz, 1.5 s, 8 KiB chunks."""
     directory = tmp_path_factory.mktemp('pristine') / 'bag'
     bag = BagWriter(str(directory), chunk_size=8192, compression='zstd')
     bag.add_topic('/clock', CLOCK, [qos_profile_dict()])

@@ -49,7 +49,7 @@ def received(seconds=2.0, seed=7):
 
 def recorder_order(per_topic, seed=3):
     """
-    The order the recorder's callbacks take them.
+    Return the order the recorder's callbacks take them.
 
     Executor rounds every ms, each round the ready subscriptions in random order, each taking
     everything received so far; a 1 kHz subscription is ready in 40 % of the rounds (bursts of ~2.5

@@ -13,8 +13,12 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_record_topics_yaml_is_generated_from_the_table():
-    """Regenerate with `python -m saw_ros.interface.topics --write-record-yaml
-    msg_config/record_topics.yaml`."""
+    """
+    Check msg_config/record_topics.yaml against the table.
+
+    Regenerate with `python -m saw_ros.interface.topics --write-record-yaml
+    msg_config/record_topics.yaml`.
+    """
     text = (ROOT / 'msg_config' / 'record_topics.yaml').read_text(encoding='utf-8')
     assert text == topics.record_topics_yaml()
     doc = yaml.safe_load(text)

@@ -37,7 +37,7 @@ def no_ament(monkeypatch):
 
 
 def fake_install(prefix: Path, site: str, package: str, python=True) -> Path:
-    """An install prefix holding one interface package, as ament installs it."""
+    """Return an install prefix holding one interface package, as ament installs it."""
     (prefix / 'share' / package / 'msg').mkdir(parents=True)
     (prefix / 'share' / package / 'package.xml').write_text('<package format="3"/>')
     (prefix / 'share' / package / 'msg' / 'Thing.msg').write_text('float64 x\n')
@@ -119,8 +119,11 @@ def test_installed_message_definitions_and_hashes_without_ament_prefix_path(no_a
 
 
 def test_config_files_found_by_the_installed_package_without_ament_prefix_path(tmp_path):
-    """Run from elsewhere (in a colcon workspace this imports the installed saw_ros, not the
-    source): config_path and the recorder's default topics find msg_config/."""
+    """
+    Run from elsewhere: config_path and the recorder's default topics find msg_config/.
+
+    In a colcon workspace this imports the installed saw_ros, not the source.
+    """
     code = textwrap.dedent("""
         import saw_ros
         from saw_ros.interface.config import config_path

@@ -27,7 +27,7 @@ MARKER = Path('share', 'ament_index', 'resource_index', 'packages', 'saw_ros')
 
 def installed_prefix():
     """
-    The install prefix of saw_ros this suite runs against.
+    Return the install prefix of saw_ros this suite runs against.
 
     The venv itself (bootstrap.sh), else the first prefix of AMENT_PREFIX_PATH that lists saw_ros
     (colcon test sets it), else None.
@@ -59,7 +59,7 @@ def console_scripts():
 
 
 def setup_arguments():
-    """The keyword arguments setup.py passes to setup(), without running setuptools."""
+    """Return the keyword arguments setup.py passes to setup(), without running setuptools."""
     captured = {}
     cwd = os.getcwd()
     os.chdir(ROOT)      # setup.py globs msg_config/ relative to its folder, as colcon runs it
@@ -92,8 +92,12 @@ def test_setup_installs_config_and_ament_marker_for_colcon():
 
 
 def test_setup_declares_pytest_so_colcon_test_runs_the_suite():
-    """colcon-core's python test step picks pytest only if tests_require or
-    extras_require['test'] names it; otherwise unittest finds no test and reports OK."""
+    """
+    Check that setup.py names pytest as a test requirement.
+
+    colcon-core's python test step picks pytest only if tests_require or extras_require['test']
+    names it; otherwise unittest finds no test and reports OK.
+    """
     args = setup_arguments()
     test_requires = list(args.get('tests_require') or []) + list(
         (args.get('extras_require') or {}).get('test') or [])

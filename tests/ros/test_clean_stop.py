@@ -116,7 +116,7 @@ class Graph:
 
 def check_bag(bag_dir, steps=None, frames=None, fps=60.0):
     """
-    The recording stopped this way is complete.
+    Return the recording stopped this way is complete.
 
     Metadata.yaml written, every file finished, counts in metadata.yaml equal to the messages in
     the files, each 1 kHz stream's steps in order from 1 ms on; given the simulator's and the
@@ -162,7 +162,7 @@ def camera_frames(camera: ManagedProcess) -> int:
 
 
 def simulator_steps(simulator: ManagedProcess) -> int:
-    """Steps the simulator published, from the line it logs when it stops."""
+    """Step the simulator published, from the line it logs when it stops."""
     for line in simulator.output().splitlines():
         if '[simulator]: stopped after ' in line:
             return int(line.split('stopped after ', 1)[1].split()[0])

@@ -22,7 +22,7 @@ def start(tmp_path, name, **params):
 
 
 def refused_at_start(proc, *texts):
-    """The node exits 1 with a one-line reason containing ``texts`` and no traceback."""
+    """Return the node exits 1 with a one-line reason containing ``texts`` and no traceback."""
     assert proc.wait(30) == 1, proc.output()
     out = proc.output()
     assert 'Traceback' not in out, out

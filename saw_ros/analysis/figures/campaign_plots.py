@@ -13,9 +13,12 @@ import numpy as np
 
 
 def plot_campaign(results, summary, figure17: Path, figure18: Path) -> None:
-    """Figure 17 (tracked speed against slope and against voltage, with the linear fits and the
-    paper's measured speeds) and Figure 18 (AR of simulation and tracking per condition) of
-    ``analysis.campaign``'s results and summary."""
+    """
+    Draw Figures 17 and 18 of ``analysis.campaign``'s results and summary.
+
+    Figure 17: tracked speed against slope and against voltage, with the linear fits and the
+    paper's measured speeds; Figure 18: AR of simulation and tracking per condition.
+    """
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

@@ -5,7 +5,7 @@ The paper's validation campaign.
 tracker; a table (CSV, markdown), the mean relative error per voltage and overall, speed against
 slope and voltage with linear fits (Figure 17) and the AR comparison (Figure 18).
 
-examples:
+For example:
   saw-ros campaign                                   # the paper's 20 conditions -> out/campaign
   saw-ros campaign --slopes=-20,0,20 --voltages 6,7 --out /tmp/c   # "=" before negatives
   saw-ros campaign --set motor.hz_per_volt=0.22      # calibrate the motor

@@ -8,7 +8,7 @@ lives in the repository's docs/: run `saw-ros figures` from the repository root 
 figures: 4 (statics), 7 and 8 (time series, CCI), 9 (gap), 10 (stiffness), 11 (COF),
 20 and 21 (wave against worm).
 
-examples:
+For example:
   saw-ros figures                          # everything into ./docs
   saw-ros figures --out /tmp/repro --quick # coarse grids, a few seconds
   saw-ros figures --only 9,10 --out /tmp/repro

@@ -21,7 +21,7 @@ HELP = 'simulate a run and render it to an .mp4 (the virtual camera, offline)'
 
 def spec_option(p, cls, name: str, flag: str = None) -> None:
     """
-    A --flag for dataclass field ``cls.name`` with its default.
+    Return a --flag for dataclass field ``cls.name`` with its default.
 
     Unit and description from the field's spec() (the camera node's parameter of the same name
     reads the same one).

@@ -4,7 +4,7 @@ Run one scenario of the physics core and print AR, v, v_theory and CCI convergen
 Human-facing flags take degrees, mm and cm; everything inside is SI. Any model parameter can be
 set by its dotted name in SI units with --set (see `saw-ros simulate --list`).
 
-examples:
+For example:
   saw-ros simulate                                  # the paper's default case, level
   saw-ros simulate --slope-deg 90 --duration 8      # vertical climb
   saw-ros simulate --voltage 6 --slope-deg 20 --csv run.csv
@@ -26,7 +26,7 @@ HELP = 'run one simulation and print AR, speed and CCI convergence (optionally a
 
 
 def add_scenario_arguments(p):
-    """Flags shared by the commands that set up a scenario."""
+    """Flag shared by the commands that set up a scenario."""
     g = p.add_argument_group('scenario (human units)')
     g.add_argument('--params-file', type=Path, help='ROS parameters YAML (msg_config/ format)')
     g.add_argument('--slope-deg', type=float, help='surface slope, degrees (+ climbs)')

@@ -4,7 +4,7 @@ The paper's statics (Section 3, Eqs. 1-5, Figure 4).
 The minimal normal forces the surfaces must press with for the robot to climb, and the slope above
 which the top surface is needed.
 
-examples:
+For example:
   saw-ros statics                              # Figure 4's cases A, B, C at 90 deg
   saw-ros statics --slope-deg 30 --fext-mg 0.5 --mu 0.8
 """

@@ -42,7 +42,7 @@ OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 f
 
 
 def _described(entry, more: str):
-    """A spec entry with ``more`` added to its description."""
+    """Return a spec entry with ``more`` added to its description."""
     name, default, meta = entry
     return name, default, dict(meta, description=meta['description'] + more)
 
@@ -267,7 +267,7 @@ class CameraNode(Node):
 
     def _follow(self, t_ns: int) -> None:
         """
-        A camera on a rail along the track.
+        Return a camera on a rail along the track.
 
         When a marker comes within ``follow_margin`` of the picture's edge, move by ``follow_step``
         (or onto the robot's COM, to the mm) along the surfaces. The images from then on are the

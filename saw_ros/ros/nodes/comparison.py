@@ -101,7 +101,7 @@ def _check_positive(name, value) -> None:
 
 def read_reference(path: str):
     """
-    The reference points of ``path`` ('' = none).
+    Return the reference points of ``path`` ('' = none).
 
     NodeFailure with a one-line reason if the file is missing or does not parse.
     """

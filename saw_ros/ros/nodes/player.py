@@ -1,7 +1,7 @@
 """
 Node ``player``: play a bag back onto its topics, as ``ros2 bag play --clock`` would.
 
-Parameters
+ROS parameters:
   bag                  string    bag directory (or .mcap file); required
   rate                 double    speed factor (default 1.0: original timing)
   topics               string[]  only these topics (default: all)

@@ -1,7 +1,7 @@
 """
 Node ``recorder``: record topics into a rosbag2 bag (MCAP storage) as ``ros2 bag record`` would.
 
-Parameters
+ROS parameters:
   topics      string[]  topics to record; empty: ``msg_config/record_topics.yaml`` (every topic of
                         saw_ros and /clock, plus any topic under its ``prefixes``, less its
                         ``exclude``: the raw camera frames)
@@ -106,7 +106,7 @@ def default_topics():
 
 def default_excluded() -> List[str]:
     """
-    The ``exclude`` list of msg_config/record_topics.yaml.
+    Return the ``exclude`` list of msg_config/record_topics.yaml.
 
     (topics under a prefix that the recorder leaves out by default).
     """
@@ -170,7 +170,7 @@ class LossCounter:
 
 
 def _entry(topic: str, data: bytes, info: dict) -> tuple:
-    """What the writer thread gets for one message taken from a raw subscription."""
+    """Return what the writer thread gets for one message taken from a raw subscription."""
     return (topic, data, info['received_timestamp'] or time.time_ns(), info['source_timestamp'],
             info.get('publication_sequence_number', 0))
 
@@ -188,7 +188,7 @@ def _policy_name(policy) -> str:
 
 
 def offered_profile(qos) -> dict:
-    """An rclpy QoSProfile (a publisher's, from graph info) as rosbag2 stores it."""
+    """Return an rclpy QoSProfile (a publisher's, from graph info) as rosbag2 stores it."""
     history = _policy_name(qos.history)
     return qos_profile_dict(
         history=history, depth=qos.depth, reliability=_policy_name(qos.reliability),

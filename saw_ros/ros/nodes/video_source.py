@@ -144,7 +144,7 @@ class FrameSource:
 def camera_info(width: int, height: int, frame_id: str, px_per_m: float = 0.0,
                 distance: float = 1.0, camera_matrix=None) -> CameraInfo:
     """
-    CameraInfo of the footage.
+    Return the CameraInfo of the footage.
 
     K from the calibration, or f = px_per_m * distance with the principal point at the image centre
     (the camera node's convention), or zero.
