@@ -3,7 +3,7 @@ import os
 
 import pytest
 
-from saw_ros.graph.process import isolated_ros_env, wait_for  # noqa: F401  (re-exported for tests)
+from saw_ros.graph.process import isolated_ros_env, ManagedProcess, wait_for  # noqa: F401
 
 # Isolate DDS for the whole run before anything imports rclpy: a reserved domain keeps concurrent
 # runs apart, LOCALHOST keeps traffic on this machine.
@@ -22,3 +22,15 @@ def ros_context():
         yield context
     finally:
         rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture(autouse=True)
+def no_process_outlives_its_test():
+    """
+    Stop what a test started and left running (a failed assertion before its stop()).
+
+    Our nodes run in sessions of their own: nothing else would stop them, and a recorder left
+    behind kept running (and its domain busy) long after the test had failed.
+    """
+    yield
+    ManagedProcess.stop_all(timeout=5.0)

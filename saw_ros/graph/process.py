@@ -102,6 +102,10 @@ def wait_for(condition: Callable[[], bool], timeout: float, poll: float = 0.02,
 class ManagedProcess:
     """A child process in its own session, its output in a log file, stopped cleanly."""
 
+    # Started and not yet waited for: what stop_all() stops (a child is in a session of its own,
+    # so nothing else stops it when its starter fails or returns early).
+    live: 'set[ManagedProcess]' = set()
+
     def __init__(self, name: str, argv: Sequence[str], env: Dict[str, str],
                  log_dir: Path, cwd: Optional[Path] = None):
         self.name = name
@@ -112,6 +116,15 @@ class ManagedProcess:
         self.proc = subprocess.Popen(self.argv, env=env, cwd=cwd, stdout=self._log,
                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                      start_new_session=True)
+        ManagedProcess.live.add(self)
+
+    @classmethod
+    def stop_all(cls, timeout: float = 10.0) -> List[str]:
+        """Stop every process still running (see ``stop``); return their names."""
+        left = [p for p in list(cls.live) if p.returncode is None]
+        for p in left:
+            p.stop(timeout)
+        return [p.name for p in left]
 
     @property
     def returncode(self) -> Optional[int]:
@@ -141,11 +154,13 @@ class ManagedProcess:
                 continue
         code = self.proc.wait()
         self._log.close()
+        ManagedProcess.live.discard(self)
         return code
 
     def wait(self, timeout: Optional[float] = None) -> int:
         code = self.proc.wait(timeout)
         self._log.close()
+        ManagedProcess.live.discard(self)
         return code
 
 

@@ -1,7 +1,7 @@
 """
 What every saw_ros node shares.
 
-The main() shape, signal handling (QoS profiles: ``saw_ros.ros.qos``).
+The main() shape and signal handling (the QoS profiles are ``saw_ros.ros.qos``).
 
 main() follows ros2/demos: init, build the node, spin, and on SIGINT/SIGTERM or an external
 shutdown destroy the node and exit 0 without a traceback. A node that must exit with an error
@@ -16,10 +16,6 @@ from __future__ import annotations
 import signal
 import time
 from typing import Callable, List, Optional
-
-# The QoS profiles live in saw_ros.ros.qos; importable from here for older importers.
-from saw_ros.ros.qos import (CLOCK_QOS, IMAGE_PUBLISHER_DEPTH, image_publisher_qos,  # noqa: F401
-                             IMAGE_QOS, INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth)
 
 
 # s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.

@@ -31,7 +31,7 @@ def test_following_camera_keeps_tracking_for_20_s(ros_context):
 
     from saw_ros.ros.nodes.camera import CameraNode
     from saw_ros.ros.nodes.vision import VisionNode
-    from saw_ros.ros.runtime import STREAM_QOS as qos
+    from saw_ros.ros.qos import STREAM_QOS as qos
 
     camera = CameraNode(context=ros_context, parameter_overrides=[
         Parameter('width', value=640), Parameter('height', value=360),

@@ -42,7 +42,7 @@ def test_video_source_drives_the_vision_node(clip, ros_context, tmp_path):
 
     from saw_ros.ros import conversions as conv
     from saw_ros.ros.nodes.vision import VisionNode
-    from saw_ros.ros.runtime import STREAM_QOS
+    from saw_ros.ros.qos import STREAM_QOS
 
     path, truth = clip
     vision = VisionNode(context=ros_context, parameter_overrides=[

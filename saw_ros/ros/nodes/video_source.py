@@ -35,10 +35,11 @@ from rclpy.clock import Clock, ClockType  # noqa: E402
 from rclpy.exceptions import ParameterException  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rosgraph_msgs.msg import Clock as ClockMsg  # noqa: E402
+from saw_ros.interface import topics  # noqa: E402
 from saw_ros.ros import cdr  # noqa: E402
 from saw_ros.ros import conversions as conv  # noqa: E402
-from saw_ros.ros.runtime import (CLOCK_QOS, image_publisher_qos, NodeFailure,  # noqa: E402
-                                 run_node, spin_node)
+from saw_ros.ros.qos import CLOCK_QOS, image_publisher_qos  # noqa: E402
+from saw_ros.ros.runtime import NodeFailure, run_node, spin_node  # noqa: E402
 from saw_ros.vision.video import VideoError  # noqa: E402
 from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
 
@@ -59,8 +60,8 @@ PARAMETERS = (
     ('camera_matrix', [0.0], 'FX, FY, CX, CY [px] of a calibration; overrides px_per_m'),
     ('wait_for_subscribers', 0, 'image (and camera info) subscribers to wait for before the '
                                 'first frame'),
-    ('image_topic', '/saw/camera/image_raw', 'image output (sensor_msgs/Image, bgr8)'),
-    ('camera_info_topic', '/saw/camera/camera_info', 'camera info output'),
+    ('image_topic', topics.IMAGE, 'image output (sensor_msgs/Image, bgr8)'),
+    ('camera_info_topic', topics.CAMERA_INFO, 'camera info output'),
 )
 
 
@@ -205,7 +206,7 @@ class VideoSourceNode(Node):
         qos = image_publisher_qos()
         self._pub_image = self.create_publisher(Image, p['image_topic'], qos)
         self._pub_info = self.create_publisher(CameraInfo, p['camera_info_topic'], qos)
-        self._pub_clock = self.create_publisher(ClockMsg, '/clock', CLOCK_QOS) \
+        self._pub_clock = self.create_publisher(ClockMsg, topics.CLOCK, CLOCK_QOS) \
             if p['publish_clock'] else None
         self._frames = src.frames()
         self.sent = 0               # frames published (all passes)
