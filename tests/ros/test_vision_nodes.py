@@ -129,3 +129,27 @@ def test_vision_node_rejects_bad_parameters(ros_context):
     from saw_ros.ros.nodes.vision import VisionNode
     with pytest.raises(NodeFailure):
         VisionNode(context=ros_context, parameter_overrides=[Parameter('gate', value=-1.0)])
+
+
+def test_vision_node_takes_the_region_and_the_markers_known_size(ros_context):
+    """roi, marker_spacing and marker_diameter reach the tracker (all 0 = not given)."""
+    from rclpy.parameter import Parameter
+
+    from saw_ros.ros.nodes.vision import VisionNode
+    from saw_ros.ros.runtime import NodeFailure
+    default = VisionNode(context=ros_context)
+    try:
+        assert default.config.roi is None and default.config.marker_spacing is None
+        assert default.config.marker_diameter is None
+    finally:
+        default.destroy_node()
+    given = VisionNode(context=ros_context, parameter_overrides=[
+        Parameter('roi', value=[10, 20, 1200, 700]), Parameter('marker_spacing', value=0.32),
+        Parameter('marker_diameter', value=0.012)])
+    try:
+        assert given.config.roi == (10, 20, 1200, 700)
+        assert (given.config.marker_spacing, given.config.marker_diameter) == (0.32, 0.012)
+    finally:
+        given.destroy_node()
+    with pytest.raises(NodeFailure, match='roi'):
+        VisionNode(context=ros_context, parameter_overrides=[Parameter('roi', value=[5, 5, 1])])

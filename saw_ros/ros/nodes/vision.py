@@ -50,8 +50,12 @@ PENDING = 30            # images kept while waiting for the first CameraInfo
 # from this table, --write-yaml).
 CAMERA_FIELDS = ('slope', 'center_x', 'center_y', 'mirror')
 CONFIG_FIELDS = ('hue_min', 'hue_max', 'sat_min', 'val_min', 'pink_min', 'min_area', 'downscale',
-                 'gate', 'com_offset_x', 'com_offset_y', 'marker_line_angle', 'smooth_window',
-                 'steady_window')
+                 'min_contrast', 'merge_distance', 'gate', 'reacquire_after', 'spacing_tolerance',
+                 'max_pitch', 'colour_tolerance', 'com_offset_x', 'com_offset_y',
+                 'marker_line_angle', 'smooth_window', 'steady_window', 'steady_fill',
+                 'max_step_gap')
+# TrackerConfig's optional fields, as ROS parameters have no 'unset': 0 (all zeros) = not given.
+OPTIONAL_FIELDS = ('roi', 'marker_spacing', 'marker_diameter')
 PARAMETERS = (
     ('image_topic', topics.IMAGE,
      spec_meta('', 'image input (sensor_msgs/Image, bgr8 or rgb8)')),
@@ -63,6 +67,14 @@ PARAMETERS = (
                                            'px/m = fx / this)', 0.0, None, low_open=True)),
     *spec_entries(CameraModel, CAMERA_FIELDS),
     *spec_entries(TrackerConfig, CONFIG_FIELDS),
+    ('roi', [0, 0, 0, 0], spec_meta('px', 'region of interest x0, y0, x1, y1 (x1, y1 excluded): '
+                                          'markers are looked for only there; all 0 = the '
+                                          'whole picture')),
+    ('marker_spacing', 0.0, spec_meta('m', "distance between the markers' centres on the "
+                                           'robot: picks the pair among pink things; 0 = not '
+                                           'known', 0.0, None)),
+    ('marker_diameter', 0.0, spec_meta('m', 'diameter of a marker: blobs of another size are '
+                                            'not markers; 0 = not known', 0.0, None)),
 )
 YAML_HEADER = """\
 Parameters of the saw_ros vision node (two-pink-marker tracker):
@@ -100,7 +112,9 @@ class VisionNode(Node):
         super().__init__('vision', **kwargs)
         try:
             p = declare_spec(self, PARAMETERS)
-            self.config = TrackerConfig(**{k: p[k] for k in CONFIG_FIELDS})
+            optional = {k: (None if not any(p[k] if k == 'roi' else [p[k]]) else
+                            tuple(p[k]) if k == 'roi' else p[k]) for k in OPTIONAL_FIELDS}
+            self.config = TrackerConfig(**{k: p[k] for k in CONFIG_FIELDS}, **optional)
             if p['px_per_m'] < 0 or not p['plane_distance'] > 0:
                 raise ValueError('px_per_m must be >= 0 and plane_distance > 0')
         except (ParameterException, ValueError, TypeError) as exc:
