@@ -149,7 +149,8 @@ def summarise(results: List[ConditionResult]) -> Dict[str, object]:
             'mean_reference_error': float(np.mean(refs)) if refs else float('nan')}
 
 
-def write_outputs(results: List[ConditionResult], out: Path) -> Dict[str, Path]:
+def write_outputs(results: List[ConditionResult], out: Path,
+                  measured: str = 'virtual camera + tracker') -> Dict[str, Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     summary = summarise(results)
@@ -163,7 +164,7 @@ def write_outputs(results: List[ConditionResult], out: Path) -> Dict[str, Path]:
                              for k, v in asdict(r).items()})
     paths['markdown'].write_text(markdown(results, summary))
     from saw_ros.analysis.figures.campaign_plots import plot_campaign
-    plot_campaign(results, summary, paths['figure17'], paths['figure18'])
+    plot_campaign(results, summary, paths['figure17'], paths['figure18'], measured)
     return paths
 
 

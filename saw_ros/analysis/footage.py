@@ -246,7 +246,7 @@ def _f(value, fmt='.6g'):
 
 def write_footage_outputs(results: List[FootageResult], out) -> Dict[str, Path]:
     out = Path(out)
-    paths = write_outputs([r.condition for r in results], out)
+    paths = write_outputs([r.condition for r in results], out, measured='your footage')
     paths['targets'] = out / 'footage.csv'
     paths['footage_md'] = out / 'footage.md'
     frames_dir = out / 'frames'

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 
-def plot_campaign(results, summary, figure17: Path, figure18: Path) -> None:
+def plot_campaign(results, summary, figure17: Path, figure18: Path,
+                  measured: str = 'virtual camera + tracker') -> None:
     """
     Draw Figures 17 and 18 of ``analysis.campaign``'s results and summary.
 
@@ -33,12 +34,13 @@ def plot_campaign(results, summary, figure17: Path, figure18: Path) -> None:
             x = [getattr(r, along) for r in rows]
             ax.plot(x, [100 * r.v_tracked for r in rows], 'o', color=f'C{i}',
                     label=label.format(key))
+            ax.plot(x, [100 * r.v_sim for r in rows], 'x', color=f'C{i}', ms=5)
             if key in fits:
                 a, b, r2 = fits[key]
                 ax.plot(x, [100 * (a * u + b) for u in x], '-', color=f'C{i}', lw=1,
                         label=f'fit R$^2$={r2:.3f}')
         ax.set_xlabel(xlabel)
-        ax.set_ylabel('tracked speed (cm/s)')
+        ax.set_ylabel('speed (cm/s): o measured, x simulated')
         ax.set_title(title)
     refs = [r for r in results if math.isfinite(r.reference_speed)]
     for r in refs:
@@ -47,7 +49,7 @@ def plot_campaign(results, summary, figure17: Path, figure18: Path) -> None:
         a2.plot([], [], 'k*', label='paper, measured')
     for ax in (a1, a2):
         ax.legend(fontsize=7, ncol=2)
-    fig.suptitle('Figure 17: speeds of the validation campaign (virtual camera + tracker)')
+    fig.suptitle(f'Figure 17: speeds measured ({measured}) and simulated')
     fig.tight_layout()
     fig.savefig(figure17, dpi=100)
     plt.close(fig)
@@ -56,11 +58,11 @@ def plot_campaign(results, summary, figure17: Path, figure18: Path) -> None:
     labels = [f'{r.slope_deg:g}°\n{r.voltage:g} V' for r in results]
     x = np.arange(len(results))
     ax.plot(x, [r.ar_sim for r in results], '^', label='simulation')
-    ax.plot(x, [r.ar_tracked for r in results], 'o', mfc='none', label='tracking')
+    ax.plot(x, [r.ar_tracked for r in results], 'o', mfc='none', label=f'measured ({measured})')
     ax.set_xticks(x)
     ax.set_xticklabels(labels, fontsize=7)
     ax.set_ylabel('advance ratio')
-    ax.set_title(f'Figure 18: AR of simulation and tracking; mean relative error '
+    ax.set_title(f'Figure 18: AR simulated and measured; mean relative error '
                  f'{100 * summary["mean_relative_error"]:.2f} %')
     ax.legend()
     fig.tight_layout()
