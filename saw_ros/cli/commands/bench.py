@@ -22,8 +22,11 @@ HELP = 'measure speed and accuracy figures (--json prints one JSON object)'
 
 
 def modules():
+    """Yield (name, module) of every benchmark module: those with KEYS (not loadgen, a tool)."""
     for info in sorted(pkgutil.iter_modules(benchmarks.__path__), key=lambda m: m.name):
-        yield info.name, importlib.import_module(f'{benchmarks.__name__}.{info.name}')
+        module = importlib.import_module(f'{benchmarks.__name__}.{info.name}')
+        if hasattr(module, 'KEYS'):
+            yield info.name, module
 
 
 def add_arguments(p):
