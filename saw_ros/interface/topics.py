@@ -35,6 +35,7 @@ CONTACTS = '/saw/contacts'
 CONTACT_WRENCH = '/saw/contact_wrench'
 JOINT_STATES = '/saw/joint_states'
 IMAGE = '/saw/camera/image_raw'
+IMAGE_COMPRESSED = '/saw/camera/image_raw/compressed'
 CAMERA_INFO = '/saw/camera/camera_info'
 TRACKING_FRONT = '/saw/tracking/front'
 TRACKING_BACK = '/saw/tracking/back'
@@ -62,6 +63,8 @@ TOPICS: Tuple[Topic, ...] = (
           'base_link', 'helix phase and the links'),
     Topic(IMAGE, 'sensor_msgs/msg/Image', 'image', 'camera', '60 Hz', 'saw_camera',
           'virtual camera frames, bgr8 1280x720', recorded=False),
+    Topic(IMAGE_COMPRESSED, 'sensor_msgs/msg/CompressedImage', 'image', 'camera', '60 Hz',
+          'saw_camera', "the same frames as JPEG, image_transport's 'compressed' format"),
     Topic(CAMERA_INFO, 'sensor_msgs/msg/CameraInfo', 'image', 'camera', '60 Hz', 'saw_camera',
           'K, P matching the rendering'),
     Topic(TRACKING_FRONT, 'geometry_msgs/msg/PointStamped', 'tracking', 'vision', '60 Hz',
@@ -117,7 +120,7 @@ def record_topics_yaml() -> str:
             continue
         note = f'# {t.publisher}, {t.rate}' if t.publisher != last else ''
         last = t.publisher
-        lines.append(f'  - {t.name:<32}{note}'.rstrip())
+        lines.append((f'  - {t.name} '.ljust(36) + note).rstrip())
     lines += ['# Every topic under these prefixes is recorded too (tracker outputs may grow)...',
               'prefixes:', f'  - {PREFIX}',
               '# ...but these. /saw/camera/image_raw: 60 fps of 1280x720 bgr8 is 166 MB/s, '

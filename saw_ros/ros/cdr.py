@@ -189,3 +189,22 @@ class ImageCdr:
         sec, nanosec = divmod(nanoseconds, NS_PER_S)
         return b''.join((ENCAPSULATION, _STAMP_LE.pack(sec, nanosec), self._head,
                          _U32_LE.pack(self._size), view))
+
+
+class CompressedImageCdr:
+    """
+    Encodes sensor_msgs/CompressedImage.
+
+    (little-endian XCDR1) around the compressed bytes: ``encoder(data, stamp_ns)`` -> bytes ready
+    for ``publish``.
+    """
+
+    def __init__(self, format_: str, frame_id: str):
+        w = CdrWriter(8).string(frame_id)               # after the stamp (8 bytes)
+        w.string(format_).align(4)                      # then the data's u32 length
+        self._head = bytes(w.buf)
+
+    def __call__(self, data: bytes, nanoseconds: int) -> bytes:
+        sec, nanosec = divmod(nanoseconds, NS_PER_S)
+        return b''.join((ENCAPSULATION, _STAMP_LE.pack(sec, nanosec), self._head,
+                         _U32_LE.pack(len(data)), data))

@@ -18,7 +18,8 @@ DURATION = 4.6        # s of simulated time
 
 
 @pytest.fixture
-def nodes(ros_context, tmp_path):
+def nodes(ros_context, tmp_path, request):
+    """Camera (raw and compressed images) and vision on ``request.param``'s transport."""
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.parameter import Parameter
@@ -31,7 +32,8 @@ def nodes(ros_context, tmp_path):
     camera = CameraNode(context=ros_context, parameter_overrides=[
         Parameter('video_path', value=str(video))])
     vision = VisionNode(context=ros_context, parameter_overrides=[
-        Parameter('steady_window', value=STEADY)])
+        Parameter('steady_window', value=STEADY),
+        Parameter('image_transport', value=getattr(request, 'param', 'raw'))])
     source = Node('test_source', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     for n in (camera, vision, source):
@@ -45,15 +47,17 @@ def nodes(ros_context, tmp_path):
             n.destroy_node()
 
 
+@pytest.mark.parametrize('nodes', ['raw', 'compressed'], indirect=True)
 def test_camera_and_vision_nodes_track_the_simulation(nodes):
+    """The same tolerances through raw images and through JPEG (quality 90)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped
-    from sensor_msgs.msg import CameraInfo, Image, JointState
+    from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
 
     from saw_ros.cli.commands.track import track_video
 
     camera, vision, source, executor, video, qos = nodes
-    got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image')}
+    got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image', 'jpeg')}
     source.create_subscription(PoseStamped, table.TRACKING_POSE, got['pose'].append, qos)
     source.create_subscription(TwistStamped, table.TRACKING_STEADY_SPEED, got['steady'].append,
                                qos)
@@ -63,11 +67,14 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
     source.create_subscription(CameraInfo, table.CAMERA_INFO, got['info'].append, qos)
     source.create_subscription(Image, table.IMAGE,
                                lambda m: got['image'].append(conv.stamp_ns(m.header.stamp)), qos)
+    source.create_subscription(CompressedImage, table.IMAGE_COMPRESSED,
+                               lambda m: got['jpeg'].append((conv.stamp_ns(m.header.stamp),
+                                                             m.header.frame_id, m.format)), qos)
     pub_pose = source.create_publisher(PoseStamped, table.POSE, qos)
     pub_joints = source.create_publisher(JointState, table.JOINT_STATES, qos)
     assert wait_for(lambda: pub_pose.get_subscription_count() >= 1
                     and pub_joints.get_subscription_count() >= 1
-                    and vision.count_publishers(table.IMAGE) >= 1, 10.0,
+                    and vision.count_publishers(vision.image_topic) >= 1, 10.0,
                     spin=lambda t: executor.spin_once(timeout_sec=t))
 
     sim = Simulator(Scenario())
@@ -94,7 +101,7 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
         assert wait_for(lambda: vision.results >= due, 20.0,
                         spin=lambda t: executor.spin_once(timeout_sec=t)), \
             (camera.frames, vision.results, due)
-    wait_for(lambda: min(len(got[k]) for k in ('status', 'pose', 'front', 'image'))
+    wait_for(lambda: min(len(got[k]) for k in ('status', 'pose', 'front', 'image', 'jpeg'))
              >= vision.results and got['steady'], 5.0,
              spin=lambda t: executor.spin_once(timeout_sec=t))
 
@@ -103,6 +110,8 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
     assert frames == int(math.floor(DURATION * 60 + 1e-9)) + 1
     stamps = sorted(got['image'])
     assert stamps == [int(round(k * 1e9 / 60)) for k in range(len(stamps))]
+    assert sorted(got['jpeg']) == [(t, 'saw_camera', 'bgr8; jpeg compressed bgr8')
+                                   for t in stamps]
     assert got['info'][-1].k[0] == pytest.approx(1200.0)
     assert all(s.status[0].message == 'ok' for s in got['status'])
     assert len(got['pose']) == frames and len(got['front']) == frames

@@ -4,9 +4,11 @@ The camera node: a virtual 60 fps side-view camera of the simulated robot.
 Subscribes /saw/pose (PoseStamped) and /saw/joint_states (JointState, ``helix`` = wave phase) and
 renders one frame for every 1/fps s of SIMULATED time, stamped with that time: frame k is drawn
 once both streams have reached t_k + exposure / 2 (poses are interpolated between samples), and
-no frame is ever skipped, however late. Publishes /saw/camera/image_raw (sensor_msgs/Image, bgr8)
-and /saw/camera/camera_info (sensor_msgs/CameraInfo: K, P of the rendering, no distortion), both
-with the frame's stamp. Optionally writes the frames to an .mp4 (``video_path``).
+no frame is ever skipped, however late. Publishes /saw/camera/image_raw (sensor_msgs/Image, bgr8),
+/saw/camera/image_raw/compressed (sensor_msgs/CompressedImage, JPEG as image_transport's
+``compressed`` plugin: ``image_transport`` chooses raw, compressed or both) and
+/saw/camera/camera_info (sensor_msgs/CameraInfo: K, P of the rendering, no distortion), all with
+the frame's stamp. Optionally writes the frames to an .mp4 (``video_path``).
 
 The drawing lives in ``saw_ros.vision.frames``; docs/vision.md lists topics and parameters.
 """
@@ -32,11 +34,13 @@ from saw_ros.ros.params import declare_spec, ScenarioParameters, yaml_text
 from saw_ros.ros.qos import image_publisher_qos, INPUT_DEPTH, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_node
+from saw_ros.vision import compressed
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import pose_between, Renderer, RenderOptions, RobotPose, StampedSeries
 from saw_ros.vision.video import VideoError, VideoWriter
-from sensor_msgs.msg import CameraInfo, Image, JointState
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
 
+TRANSPORTS = ('raw', 'compressed', 'both')
 KEEP = 2.0          # s of simulated time kept in the pose buffers
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)
 
@@ -72,6 +76,12 @@ PARAMETERS = (
                                           'the picture size of an edge', 0.0, 0.5, low_open=True,
                                       high_open=True)),
     *(_RENDER[n] for n in ('noise', 'exposure', 'blur_samples', 'brightness', 'texture', 'seed')),
+    ('image_transport', 'both',
+     spec_meta('', "images published: 'raw' (Image on image_raw), 'compressed' (JPEG "
+                   'CompressedImage on image_raw/compressed, what the recorder takes) or '
+                   "'both'")),
+    ('jpeg_quality', compressed.DEFAULT_QUALITY,
+     spec_meta('', 'JPEG quality of the compressed images', 1, 100)),
     ('video_path', '', spec_meta('', '.mp4 file to write the frames to; empty = none')),
     ('frame_id', 'saw_camera', spec_meta('', 'frame_id of the images and camera info')),
     ('pose_topic', topics.POSE, spec_meta('', 'robot pose input (PoseStamped)')),
@@ -114,6 +124,11 @@ class CameraNode(Node):
                                     blur_samples=int(p['blur_samples']),
                                     brightness=float(p['brightness']), texture=bool(p['texture']),
                                     seed=int(p['seed']))
+            if p['image_transport'] not in TRANSPORTS:
+                raise ValueError(f"image_transport = {p['image_transport']!r}: one of "
+                                 + ', '.join(TRANSPORTS))
+            if not 1 <= p['jpeg_quality'] <= 100:
+                raise ValueError(f"jpeg_quality = {p['jpeg_quality']} must be in [1, 100]")
             if not p['fps'] > 0:
                 raise ValueError(f"fps = {p['fps']} must be > 0")
             if not (0 < p['follow_margin'] < 0.5 and p['follow_step'] >= 0):
@@ -138,7 +153,10 @@ class CameraNode(Node):
         self._next = None          # index of the next frame
         self.frames = 0
         self.received = {'poses': 0, 'joint_states': 0}
-        self.busy = {'render': 0.0, 'publish': 0.0, 'video': 0.0}     # wall s per stage
+        self.busy = {'render': 0.0, 'publish': 0.0, 'jpeg': 0.0, 'video': 0.0}  # wall s/stage
+        self.raw = p['image_transport'] in ('raw', 'both')
+        self.jpeg_quality = int(p['jpeg_quality']) \
+            if p['image_transport'] in ('compressed', 'both') else None
         # Publishing a 2.7 MB image and encoding it into the video take longer than rendering
         # it (measured in the full graph: publish 7 ms, video 7 ms, render 4 ms a frame): an
         # output thread does both, in frame order, so that the executor thread keeps taking
@@ -153,7 +171,12 @@ class CameraNode(Node):
         self._helix = cdr.JointPosition('helix')
         out_qos = image_publisher_qos()
         in_qos = with_depth(STREAM_QOS, INPUT_DEPTH)
-        self._pub_image = self.create_publisher(Image, topics.IMAGE, out_qos)
+        self._pub_image = self.create_publisher(Image, topics.IMAGE, out_qos) \
+            if self.raw else None
+        self._compressed_cdr = cdr.CompressedImageCdr(compressed.JPEG_FORMAT, self.frame_id)
+        self._pub_compressed = self.create_publisher(
+            CompressedImage, topics.IMAGE_COMPRESSED, out_qos) \
+            if self.jpeg_quality is not None else None
         self._pub_info = self.create_publisher(CameraInfo, topics.CAMERA_INFO, out_qos)
         self._inputs = (
             self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
@@ -310,7 +333,15 @@ class CameraNode(Node):
             info = info or self.info
             conv.time_msg(t_ns, info.header.stamp)
             self._pub_info.publish(info)      # first: a reader has the new K for the image
-            self._pub_image.publish(self._image_cdr(np.ascontiguousarray(frame), t_ns))
+            frame = np.ascontiguousarray(frame)
+            if self._pub_image is not None:
+                self._pub_image.publish(self._image_cdr(frame, t_ns))
+            if self._pub_compressed is not None:
+                # Here, in the output thread: OpenCV encodes without the GIL.
+                t = time.perf_counter()
+                data = compressed.encode_jpeg(frame, self.jpeg_quality)
+                self.busy['jpeg'] += time.perf_counter() - t
+                self._pub_compressed.publish(self._compressed_cdr(data, t_ns))
             self.frames += 1
         finally:
             t1 = time.perf_counter()

@@ -1,7 +1,9 @@
 """
 The vision node: the two-pink-marker tracker on any image stream.
 
-Subscribes an Image stream (bgr8 or rgb8) and, unless ``px_per_m`` is given, its CameraInfo
+Subscribes an Image stream (bgr8 or rgb8), or with ``image_transport`` 'compressed' its
+``<image_topic>/compressed`` stream (sensor_msgs/CompressedImage, JPEG, as image_transport's
+``compressed`` plugin sends it), and, unless ``px_per_m`` is given, its CameraInfo
 (px per metre = K's focal length / ``plane_distance``). Per frame, stamped with the image's stamp,
 in frame ``surface`` (docs/vision.md):
 
@@ -39,9 +41,10 @@ from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_node
+from saw_ros.vision import compressed
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
 PENDING = 30            # images kept while waiting for the first CameraInfo
 
@@ -59,6 +62,9 @@ OPTIONAL_FIELDS = ('roi', 'marker_spacing', 'marker_diameter')
 PARAMETERS = (
     ('image_topic', topics.IMAGE,
      spec_meta('', 'image input (sensor_msgs/Image, bgr8 or rgb8)')),
+    ('image_transport', 'raw',
+     spec_meta('', "'raw': Image on image_topic; 'compressed': CompressedImage (JPEG) on "
+                   'image_topic/compressed')),
     ('camera_info_topic', topics.CAMERA_INFO,
      spec_meta('', 'camera info input (K gives the scale)')),
     ('px_per_m', 0.0, spec_meta('px/m', 'pixels per metre in the plane of motion; 0 = from '
@@ -115,6 +121,9 @@ class VisionNode(Node):
             optional = {k: (None if not any(p[k] if k == 'roi' else [p[k]]) else
                             tuple(p[k]) if k == 'roi' else p[k]) for k in OPTIONAL_FIELDS}
             self.config = TrackerConfig(**{k: p[k] for k in CONFIG_FIELDS}, **optional)
+            if p['image_transport'] not in compressed.TRANSPORTS:
+                raise ValueError(f"image_transport = {p['image_transport']!r}: raw or "
+                                 'compressed')
             if p['px_per_m'] < 0 or not p['plane_distance'] > 0:
                 raise ValueError('px_per_m must be >= 0 and plane_distance > 0')
         except (ParameterException, ValueError, TypeError) as exc:
@@ -136,13 +145,19 @@ class VisionNode(Node):
         self._pub_status = pub(DiagnosticArray, topics.TRACKING_STATUS, STREAM_QOS)
         # Raw: the 2.7 MB pixels are read in place (cdr.ImageView) instead of being converted
         # to a Python array and copied again.
-        self.create_subscription(Image, p['image_topic'], self._on_image_raw,
-                                 with_depth(IMAGE_QOS, IMAGE_PUBLISHER_DEPTH),
-                                 raw=True)
+        image_qos = with_depth(IMAGE_QOS, IMAGE_PUBLISHER_DEPTH)
+        if p['image_transport'] == 'compressed':
+            self.image_topic = compressed.compressed_topic(p['image_topic'])
+            self.create_subscription(CompressedImage, self.image_topic, self._on_image,
+                                     image_qos)
+        else:
+            self.image_topic = p['image_topic']
+            self.create_subscription(Image, self.image_topic, self._on_image_raw, image_qos,
+                                     raw=True)
         if not p['px_per_m'] > 0:
             self.create_subscription(CameraInfo, p['camera_info_topic'], self._on_info,
                                      IMAGE_QOS)
-        self.get_logger().info(f"tracking the markers in {p['image_topic']}")
+        self.get_logger().info(f'tracking the markers in {self.image_topic}')
         self._readiness = Readiness(self)
         self._readiness.announce()
 
@@ -183,12 +198,15 @@ class VisionNode(Node):
         self._on_image(view)
 
     def _on_image(self, msg) -> None:
-        """One image: a sensor_msgs/Image or a cdr.ImageView."""
+        """One image: a sensor_msgs/Image, a cdr.ImageView or a sensor_msgs/CompressedImage."""
         if self.info is None and not self.p['px_per_m'] > 0:
             self._pending.append(msg)
             return
         try:
-            image, encoding = image_to_array(msg)
+            if isinstance(msg, CompressedImage):
+                image, encoding = compressed.decode(msg.format, msg.data)
+            else:
+                image, encoding = image_to_array(msg)
         except ValueError as exc:
             self.get_logger().error(str(exc), throttle_duration_sec=5.0)
             return
