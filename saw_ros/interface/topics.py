@@ -46,6 +46,7 @@ TRACKING_STEADY_SPEED = '/saw/tracking/steady_speed'
 TRACKING_STATUS = '/saw/tracking/status'
 COMPARISON = '/saw/comparison'
 READY = '/saw/ready'
+MARKERS = '/saw/markers'
 PREFIX = '/saw/'
 
 TOPICS: Tuple[Topic, ...] = (
@@ -83,6 +84,8 @@ TOPICS: Tuple[Topic, ...] = (
           '', 'tracker state per frame'),
     Topic(COMPARISON, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'comparison', '~1 Hz',
           '', 'AR of simulation and tracking, their relative error'),
+    Topic(MARKERS, 'visualization_msgs/msg/MarkerArray', 'tracking', 'markers', '60 Hz',
+          'surface', 'surfaces, robot, contact forces and tracked estimate for RViz / Foxglove'),
     Topic(READY, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'camera, comparison, vision',
           'once per node', '', "node's status: name, level OK, 'ready': 'true' once its inputs "
           'matched (saw_ros.ros.ready)', recorded=False),
