@@ -14,6 +14,7 @@ the node is destroyed, and only then the context shut down. Why: docs/measuremen
 from __future__ import annotations
 
 import signal
+import sys
 import time
 from typing import Callable, List, Optional
 
@@ -212,3 +213,17 @@ def _close(node) -> None:
             raise
     finally:
         node.destroy_node()
+
+
+def run_module(main: Callable[[], int], yaml_file: Optional[Callable[[], str]] = None) -> None:
+    """
+    Run a node module as ``python -m saw_ros.ros.nodes.<node>``.
+
+    ``--write-yaml PATH`` writes the node's parameter file (``yaml_file()``) instead of running
+    it: how every ``msg_config/<node>.yaml`` is made.
+    """
+    if yaml_file is not None and len(sys.argv) == 3 and sys.argv[1] == '--write-yaml':
+        with open(sys.argv[2], 'w') as f:
+            f.write(yaml_file())
+        raise SystemExit(0)
+    raise SystemExit(main())

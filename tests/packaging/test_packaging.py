@@ -212,9 +212,6 @@ def test_msg_config_yaml_is_generated_from_the_parameter_definitions(node, tmp_p
     import importlib
     module = importlib.import_module(f'saw_ros.ros.nodes.{node}')
     out = tmp_path / f'{node}.yaml'
-    if hasattr(module, 'yaml_file'):
-        out.write_text(module.yaml_file())
-    else:
-        module.write_yaml(out)
+    out.write_text(module.yaml_file())
     assert out.read_bytes() == (ROOT / 'msg_config' / f'{node}.yaml').read_bytes(), (
         f'regenerate: python -m saw_ros.ros.nodes.{node} --write-yaml msg_config/{node}.yaml')

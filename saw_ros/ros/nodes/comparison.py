@@ -43,7 +43,7 @@ from saw_ros.ros.params import declare_spec, SIMULATOR_EXCLUDED
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
-from saw_ros.ros.runtime import NodeFailure, run_node, spin_events
+from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_events
 
 TRACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -309,9 +309,4 @@ def main(args=None):
 
 
 if __name__ == '__main__':
-    import sys
-    if len(sys.argv) == 3 and sys.argv[1] == '--write-yaml':
-        with open(sys.argv[2], 'w') as f:
-            f.write(yaml_file())
-        raise SystemExit(0)
-    raise SystemExit(main())
+    run_module(main, yaml_file)

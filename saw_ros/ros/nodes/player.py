@@ -36,7 +36,7 @@ from saw_ros.interface.topics import CLOCK
 from saw_ros.ros.conversions import clock_cdr
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import CLOCK_QOS, message_class
-from saw_ros.ros.runtime import NodeFailure, run_node
+from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 
 SLEEP_MIN = 0.0005   # s: no sleep for a message due sooner than this (timing error < 0.5 ms)
 MAX_CLOCK_RATE = 1e6  # Hz: one /clock a microsecond at most
@@ -220,9 +220,4 @@ def main(args=None) -> int:
 
 
 if __name__ == '__main__':
-    import sys
-    if len(sys.argv) == 3 and sys.argv[1] == '--write-yaml':
-        with open(sys.argv[2], 'w') as f:
-            f.write(yaml_file())
-        raise SystemExit(0)
-    raise SystemExit(main())
+    run_module(main, yaml_file)

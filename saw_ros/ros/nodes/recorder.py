@@ -50,7 +50,7 @@ from saw_ros.core.params import spec_meta
 from saw_ros.interface.topics import CLOCK, PREFIX
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import message_class
-from saw_ros.ros.runtime import NodeFailure, run_node
+from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 import yaml
 
 _STOP = object()
@@ -454,8 +454,4 @@ def main(args=None) -> int:
 
 
 if __name__ == '__main__':
-    if len(sys.argv) == 3 and sys.argv[1] == '--write-yaml':
-        with open(sys.argv[2], 'w') as f:
-            f.write(yaml_file())
-        raise SystemExit(0)
-    raise SystemExit(main())
+    run_module(main, yaml_file)

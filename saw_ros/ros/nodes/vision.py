@@ -40,7 +40,7 @@ from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
-from saw_ros.ros.runtime import NodeFailure, run_node
+from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 from saw_ros.vision import compressed
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
@@ -274,9 +274,4 @@ def main(args=None) -> int:
 
 
 if __name__ == '__main__':
-    import sys
-    if len(sys.argv) == 3 and sys.argv[1] == '--write-yaml':
-        with open(sys.argv[2], 'w') as f:
-            f.write(yaml_file())
-        raise SystemExit(0)
-    sys.exit(main())
+    run_module(main, yaml_file)
