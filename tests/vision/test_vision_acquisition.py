@@ -17,16 +17,11 @@ from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.scene import Clutter, ORANGE_RED, SceneOptions
-from saw_ros.vision.synthetic import (evaluate, frames, hard_footage, simulate_run)
+from saw_ros.vision.synthetic import evaluate, frames, hard_footage
 from saw_ros.vision.tracker import detect, Tracker, TrackerConfig, TrackStatus
 from saw_ros.vision.video import VideoWriter
 
 SPACING = 0.32                  # m, the renderer's markers
-
-
-@pytest.fixture(scope='module')
-def level_run():
-    return simulate_run(Scenario(), 6.1)
 
 
 # RGB, and whether a marker window should take it.
@@ -131,7 +126,7 @@ def test_third_pink_markers_on_the_robots_line(level_run):
     assert tracker.counters.acquisitions == 2
 
 
-def test_pink_things_next_to_a_tracked_marker(level_run):
+def test_pink_things_next_to_a_tracked_marker(level_run, mirrored_tracking):
     """
     While tracking: a pink blob 20 px from the front marker is not it.
 
@@ -139,16 +134,7 @@ def test_pink_things_next_to_a_tracked_marker(level_run):
     makes the front ambiguous; with the front hidden, two blobs equally near its expected place
     too.
     """
-    s = Scenario()
-    cam = CameraModel(mirror=True, center_x=0.1)
-    r = Renderer(s.robot, s.conditions.gap, cam)
-    tracker = Tracker(cam)
-    for k in range(20):
-        t = 2.0 + k / 60
-        pose = level_run.pose_at(t)
-        res = tracker.update(r.render(pose), t)
-        front, back = r.marker_surface(pose)
-        assert res.ok and abs(res.front - front) < 3e-4 and abs(res.back - back) < 3e-4
+    r, tracker = mirrored_tracking
     pose = level_run.pose_at(2.5)
     front, _ = r.marker_surface(pose)
     fp, _ = r.marker_pixels(pose)

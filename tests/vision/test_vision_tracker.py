@@ -11,11 +11,6 @@ from saw_ros.vision.synthetic import evaluate, simulate_run
 from saw_ros.vision.tracker import steady_speed, Tracker, TrackStatus
 
 
-@pytest.fixture(scope='module')
-def level_run():
-    return simulate_run(Scenario(), 6.1)
-
-
 def test_clean_frames_meet_the_accuracy_goals(level_run):
     ev = evaluate(level_run, start=2.0)
     assert all(r.status == TrackStatus.OK for r in ev.results)
@@ -63,23 +58,14 @@ def test_frames_without_markers_give_no_position(level_run):
     assert tracker.counters.ok == 0 and tracker.counters.front_lost == 3
 
 
-def test_front_and_back_keep_their_identity(level_run):
+def test_front_and_back_keep_their_identity(level_run, mirrored_tracking):
     """
     The robot drives left to right through the picture.
 
     A mirrored camera (robot travelling left) must not swap them, and a third pink blob near a
     marker is not taken for it (more in test_vision_acquisition.py).
     """
-    s = Scenario()
-    cam = CameraModel(mirror=True, center_x=0.1)
-    r = Renderer(s.robot, s.conditions.gap, cam)
-    tracker = Tracker(cam)
-    for k in range(20):
-        t = 2.0 + k / 60
-        pose = level_run.pose_at(t)
-        res = tracker.update(r.render(pose), t)
-        front, back = r.marker_surface(pose)
-        assert res.ok and abs(res.front - front) < 3e-4 and abs(res.back - back) < 3e-4
+    r, tracker = mirrored_tracking
     img = r.render(level_run.pose_at(2.5))
     fp, _ = r.marker_pixels(level_run.pose_at(2.5))
     u, v = int(fp.real) + 20, int(fp.imag)
