@@ -402,7 +402,6 @@ class BagReader:
         chunk_number = 0
         lost: Optional[Damage] = None     # the damaged chunk whose message indexes follow
         orphans: Dict[int, int] = {}      # channel id: messages whose channel is unknown
-        read = 0
         chunk_offsets = sorted(summary.chunks)
         ordinal = {offset: i + 1 for i, offset in enumerate(chunk_offsets)}
         while True:
@@ -472,19 +471,11 @@ class BagReader:
                     self._damaged(path, lost)
                     continue
                 for channel_id, sequence, log_time, publish_time, rec in batch:
-                    channel = channels.get(channel_id)
-                    if channel is None:
-                        orphans[channel_id] = orphans.get(channel_id, 0) + 1
-                        continue
-                    read += 1
-                    self._read[path] = read
-
-                    if wanted is not None and channel.topic not in wanted:
-                        continue
-                    schema = schemas.get(channel.schema_id)
-                    yield BagMessage(channel.topic, schema.name if schema else '',
-                                     bytes(rec[_MESSAGE.size:]), log_time, publish_time,
-                                     sequence, channel, schema)
+                    message = self._message(path, channels, schemas, orphans, wanted, channel_id,
+                                            sequence, log_time, publish_time,
+                                            bytes(rec[_MESSAGE.size:]))
+                    if message is not None:
+                        yield message
             elif opcode == _MESSAGE_INDEX and lost is not None and len(body) >= 6:
                 channel_id, = struct.unpack_from('<H', body)
                 count = _U32.unpack_from(body, 2)[0] // 16
@@ -494,17 +485,10 @@ class BagReader:
                 if name not in lost.topics:
                     lost.topics.append(name)
             elif opcode == _MESSAGE_OP:
-                channel_id, sequence, log_time, publish_time = _MESSAGE.unpack_from(body)
-                channel = channels.get(channel_id)
-                if channel is None:
-                    orphans[channel_id] = orphans.get(channel_id, 0) + 1
-                    continue
-                read += 1
-                self._read[path] = read
-                if wanted is None or channel.topic in wanted:
-                    schema = schemas.get(channel.schema_id)
-                    yield BagMessage(channel.topic, schema.name if schema else '', body[22:],
-                                     log_time, publish_time, sequence, channel, schema)
+                message = self._message(path, channels, schemas, orphans, wanted,
+                                        *_MESSAGE.unpack_from(body), body[_MESSAGE.size:])
+                if message is not None:
+                    yield message
             elif opcode in (_SCHEMA, _CHANNEL):   # outside chunks (other writers)
                 try:
                     record = _parse(Schema if opcode == _SCHEMA else Channel, body)
@@ -531,7 +515,25 @@ class BagReader:
                                                    f'channel is defined nowhere readable ({ids}): '
                                                    'its definition was in a damaged chunk',
                                        messages=sum(orphans.values())))
-        self._read[path] = read
+
+    def _message(self, path, channels, schemas, orphans, wanted, channel_id, sequence, log_time,
+                 publish_time, data: bytes) -> Optional[BagMessage]:
+        """
+        Return one message record as a BagMessage, counted as read.
+
+        None when its topic is not wanted, or when its channel is unknown (then it is counted in
+        ``orphans``: its definition was in a damaged chunk).
+        """
+        channel = channels.get(channel_id)
+        if channel is None:
+            orphans[channel_id] = orphans.get(channel_id, 0) + 1
+            return None
+        self._read[path] += 1
+        if wanted is not None and channel.topic not in wanted:
+            return None
+        schema = schemas.get(channel.schema_id)
+        return BagMessage(channel.topic, schema.name if schema else '', data, log_time,
+                          publish_time, sequence, channel, schema)
 
     @staticmethod
     def _chunk_damage(path, offset, number, summary: _Summary, index: Optional[ChunkIndex],
