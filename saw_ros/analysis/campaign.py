@@ -20,7 +20,7 @@ import numpy as np
 
 from saw_ros.analysis.compare import find_reference, load_reference, reference_error, RunComparator
 from saw_ros.core import Scenario, simulate
-from saw_ros.core.dynamics import fork_map
+from saw_ros.core.pool import LocalPool, Pool
 
 PAPER_SLOPES_DEG = (-20.0, -10.0, 0.0, 10.0, 20.0)
 PAPER_VOLTAGES = (4.0, 5.0, 6.0, 7.0)
@@ -78,19 +78,25 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
                  voltages: Sequence[float] = PAPER_VOLTAGES, base: Optional[Scenario] = None,
                  reference_file: Optional[Path] = None, workers: int = 2, fps: float = 60.0,
                  camera: Optional[Dict[str, float]] = None,
-                 progress=None) -> List[ConditionResult]:
+                 progress=None, pool: Optional[Pool] = None) -> List[ConditionResult]:
+    """
+    Simulate, film and track every (slope, voltage) condition; compare with ``reference_file``.
+
+    ``pool`` runs the batch and the tracking jobs (default: ``LocalPool(workers)``).
+    """
     base = base or Scenario()
+    pool = pool if pool is not None else LocalPool(workers)
     grid = [(s, v) for v in voltages for s in slopes_deg]
     scenarios = [base.with_values({'conditions.slope': math.radians(s), 'motor.voltage': v})
                  for s, v in grid]
     duration = max(duration_for(s.frequency) for s in scenarios)
-    trajectory = simulate(scenarios, duration)
+    trajectory = simulate(scenarios, duration, pool=pool)
     if progress is not None:
         progress(0)
     jobs = [(s, trajectory.t, trajectory.q[:, i], fps, dict(camera or {}))
             for i, s in enumerate(scenarios)]
     tracked = []
-    for part in fork_map(_track_condition, jobs, workers):
+    for part in pool.map(_track_condition, jobs):
         tracked.append(part)
         if progress is not None:
             progress(1)

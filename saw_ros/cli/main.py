@@ -15,6 +15,7 @@ import sys
 from saw_ros.cli import commands
 from saw_ros.cli.errors import UserError
 from saw_ros.core.params import ParameterError
+from saw_ros.core.pool import PoolError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,7 +38,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args._run(args) or 0)
-    except (ParameterError, UserError) as exc:
+    except (ParameterError, PoolError, UserError) as exc:
         print(f'saw-ros {args.command}: error: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:

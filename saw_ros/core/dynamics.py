@@ -16,13 +16,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 import functools
 import math
-from typing import Callable, Iterator, Optional, Sequence, Union
+from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
 from saw_ros.core.contact import contact_step, ContactLaw, ContactState
 from saw_ros.core.kinematics import check_no_interference, TipTable
 from saw_ros.core.params import ParameterError, RobotParams, Scenario
+from saw_ros.core.pool import batches, LocalPool, Pool
 
 GRAVITY = 9.81  # m/s^2
 TWO_PI = 2.0 * math.pi
@@ -248,23 +249,6 @@ class Simulator:
         return Trajectory(t, q, self.scenarios, fn, ft)
 
 
-def fork_map(function, jobs: Sequence, workers: int) -> Iterator:
-    """
-    ``function(job)`` for every job, results in order.
-
-    In this process when ``workers`` is 1, else in a pool of that many forked processes (the
-    children inherit the imported modules and tables, so nothing is rebuilt or pickled but the jobs
-    and results).
-    """
-    if workers <= 1:
-        for job in jobs:
-            yield function(job)
-        return
-    import multiprocessing
-    with multiprocessing.get_context('fork').Pool(workers) as pool:
-        yield from pool.imap(function, jobs)
-
-
 def _run_chunk(job):
     scenarios, duration, record_every, contacts = job
     return Simulator(scenarios).run(duration, record_every, None, contacts)
@@ -272,28 +256,29 @@ def _run_chunk(job):
 
 def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[float] = None,
              record_every: int = 1, progress=None, contacts: bool = False,
-             workers: int = 1) -> Trajectory:
+             workers: int = 1, pool: Optional[Pool] = None) -> Trajectory:
     """
     Run scenario(s) from the initial state for ``duration`` (default: integration.duration).
 
-    ``workers`` > 1 splits a batch over that many processes (the scenarios are independent, so
-    the numbers are the same as in one process); ``progress`` is then called per finished part.
+    A batch is cut into ``pool.workers`` parts (``core.pool.batches``) run by ``pool``: a
+    ``LocalPool(workers)`` unless given, or any pool with the same interface (a Dask cluster).
+    The scenarios are independent, so the numbers are those of one process; ``progress`` is then
+    called per finished part. One part runs here, whatever the pool.
     """
     scenarios = [scenario] if isinstance(scenario, Scenario) else list(scenario)
     if duration is None:
         duration = scenarios[0].integration.duration
-    workers = max(1, min(workers, len(scenarios) // 16))
-    if workers == 1:
+    pool = pool if pool is not None else LocalPool(workers)
+    parts = batches(scenarios, pool.workers)
+    if len(parts) == 1:
         return Simulator(scenarios).run(duration, record_every, progress, contacts)
-    bounds = np.linspace(0, len(scenarios), workers + 1).astype(int)
-    jobs = [(scenarios[a:b], duration, record_every, contacts)
-            for a, b in zip(bounds[:-1], bounds[1:])]
+    jobs = [(part, duration, record_every, contacts) for part in parts]
     steps = int(round(duration / scenarios[0].integration.dt))
-    parts = []
-    for part in fork_map(_run_chunk, jobs, workers):
-        parts.append(part)
+    done = []
+    for part in pool.map(_run_chunk, jobs):
+        done.append(part)
         if progress is not None:
             progress(steps)
-    cat = (lambda name: None if getattr(parts[0], name) is None else np.concatenate(
-        [getattr(p, name) for p in parts], axis=1))
-    return Trajectory(parts[0].t, cat('q'), scenarios, cat('normal'), cat('tangential'))
+    cat = (lambda name: None if getattr(done[0], name) is None else np.concatenate(
+        [getattr(p, name) for p in done], axis=1))
+    return Trajectory(done[0].t, cat('q'), scenarios, cat('normal'), cat('tangential'))

@@ -15,6 +15,7 @@ from typing import Dict, List, Optional, Sequence
 from saw_ros.analysis.figures import claims as claims_mod
 from saw_ros.analysis.figures import plots as render, sweeps
 from saw_ros.analysis.figures.sweeps import FIGURES
+from saw_ros.core.pool import Pool
 
 __all__ = ['FIGURES', 'reproduce', 'Result']
 
@@ -31,7 +32,12 @@ class Result:
 
 def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
               progress: bool = False, command: str = 'saw-ros figures',
-              write_report: bool = True) -> Result:
+              write_report: bool = True, pool: Optional[Pool] = None) -> Result:
+    """
+    Run the sweeps (on ``pool`` if given: see ``sweeps.run_waves``), write figures and report.
+
+    Return what was computed, the claims, the files written and the timings.
+    """
     start = time.perf_counter()
     out_dir = Path(out_dir)
     fig_dir = out_dir / 'figures'
@@ -49,7 +55,7 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
             bar.refresh()
 
     data = sweeps.compute(figures, quick, progress=bar.update if bar is not None else None,
-                          on_total=on_total)
+                          on_total=on_total, pool=pool)
     if bar is not None:
         bar.close()
     t0 = time.perf_counter()

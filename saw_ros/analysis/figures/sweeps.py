@@ -2,8 +2,10 @@
 The sweeps behind the paper's figures, computed with the batched core (no rclpy, no plotting).
 
 Every wave point of every figure is gathered first, duplicates removed (the default case appears
-in Figures 9, 10, 11 and 21), and the lot is stepped as one batch by ``core.dynamics.simulate``.
-The worm points are closed-form or quasi-static and cost nothing.
+in Figures 9, 10, 11 and 21), and the lot is stepped as one batch by ``core.dynamics.simulate``,
+or, given a pool of several workers (local processes or a Dask cluster), as ``pool.workers``
+batches cut by ``core.pool.batches``: the same cut for every pool of that size, hence the same
+numbers. The worm points are closed-form or quasi-static and cost nothing.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ from saw_ros.core import worm as worm_model
 from saw_ros.core.dynamics import DivergenceError, simulate
 from saw_ros.core.metrics import analyse, settling_time, velocity_cci
 from saw_ros.core.params import Scenario
+from saw_ros.core.pool import batches, Pool
 from saw_ros.core.statics import FIGURE4_CASES, minimal_normal_forces, top_surface_needed_above
 
 FIGURES = ('4', '7', '8', '9', '10', '11', '20', '21')
@@ -111,6 +114,31 @@ def run_wave_batch(points: Sequence[Point], grid: Grid,
             for i, p in enumerate(points)}
 
 
+def _wave_job(job) -> Dict[Point, float]:
+    points, grid = job
+    return run_wave_batch(points, grid)
+
+
+def run_waves(points: Sequence[Point], grid: Grid,
+              progress: Optional[Callable[[int], None]] = None,
+              pool: Optional[Pool] = None) -> Dict[Point, float]:
+    """
+    AR of every point: one batch here, or ``pool.workers`` batches run by ``pool``.
+
+    ``progress(n)`` counts scenario-steps (per batch when a pool runs them).
+    """
+    parts = batches(list(points), pool.workers if pool is not None else 1)
+    if len(parts) == 1:
+        return run_wave_batch(points, grid, progress)
+    steps = int(round(grid.duration / Scenario().integration.dt))
+    out: Dict[Point, float] = {}
+    for part, ars in zip(parts, pool.map(_wave_job, [(part, grid) for part in parts])):
+        out.update(ars)
+        if progress:
+            progress(steps * len(part))
+    return out
+
+
 def run_timeseries(duration: float = 4.0) -> dict:
     """Figures 7 and 8: the default case from rest at 1 Hz, every 1 ms step recorded."""
     sc = Scenario()
@@ -144,9 +172,9 @@ def worm_ar(slope_deg, kt, mu, model='closed_form') -> worm_model.WormResult:
 
 
 def compute(figures: Sequence[str] = FIGURES, quick: bool = False, progress=None,
-            on_total: Optional[Callable[[int], None]] = None) -> Data:
+            on_total: Optional[Callable[[int], None]] = None, pool: Optional[Pool] = None) -> Data:
     """
-    Run every sweep the requested figures need.
+    Run every sweep the requested figures need (the wave batch on ``pool``, if given).
 
     ``on_total(n)`` is told the number of scenario-steps first; ``progress(n)`` then counts them.
     """
@@ -162,7 +190,7 @@ def compute(figures: Sequence[str] = FIGURES, quick: bool = False, progress=None
     if on_total:
         on_total(len(points) * steps + ts_steps)
     start = time.perf_counter()
-    data.wave_ar = run_wave_batch(points, grid, progress)
+    data.wave_ar = run_waves(points, grid, progress, pool)
     data.timings['wave_batch_s'] = time.perf_counter() - start
     if ts_steps:
         start = time.perf_counter()

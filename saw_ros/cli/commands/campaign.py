@@ -12,6 +12,7 @@ For example:
   saw-ros campaign --videos samples/footage/manifest.csv --out out/footage
       # your robot's footage: one row per run (video, slope_deg, voltage_V or frequency_hz,
       # px_per_m or marker_spacing_m, notes); each video tracked, the condition simulated
+  saw-ros campaign --scheduler tcp://host:8786       # simulate and track on a Dask cluster
 """
 from pathlib import Path
 import sys
@@ -20,6 +21,7 @@ import time
 from saw_ros.analysis.campaign import (PAPER_SLOPES_DEG, PAPER_VOLTAGES, run_campaign,
                                        summarise, write_outputs)
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
+from saw_ros.cli.pool import add_pool_arguments, pool_from_args
 from saw_ros.core.params import ParameterError
 from saw_ros.interface.config import config_path
 
@@ -49,7 +51,7 @@ def add_arguments(p):
                    '(paths relative to it); --slopes/--voltages/--reference do not apply')
     p.add_argument('--reference', type=Path, default=None,
                    help="CSV of measured speeds/ARs (default: the paper's stated points)")
-    p.add_argument('--workers', type=int, default=2, help='parallel processes (2)')
+    add_pool_arguments(p, workers=2)
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     add_scenario_arguments(p)
 
@@ -95,10 +97,11 @@ def run(args):
     reference = args.reference or config_path('reference_paper.csv')
     from tqdm import tqdm
     start = time.perf_counter()
-    with tqdm(total=len(slopes) * len(voltages), unit='condition', desc='campaign',
-              file=sys.stderr, disable=args.quiet, leave=False) as bar:
-        results = run_campaign(slopes, voltages, base, reference, max(1, args.workers),
-                               progress=bar.update)
+    with pool_from_args(args) as pool, \
+            tqdm(total=len(slopes) * len(voltages), unit='condition', desc='campaign',
+                 file=sys.stderr, disable=args.quiet, leave=False) as bar:
+        results = run_campaign(slopes, voltages, base, reference, progress=bar.update,
+                               pool=pool)
     paths = write_outputs(results, args.out)
     summary = summarise(results)
     print(f'{len(results)} conditions in {time.perf_counter() - start:.1f} s')

@@ -12,11 +12,14 @@ For example:
   saw-ros figures                          # everything into ./docs
   saw-ros figures --out /tmp/repro --quick # coarse grids, a few seconds
   saw-ros figures --only 9,10 --out /tmp/repro
+  saw-ros figures --workers 2              # the wave batch cut in two, one part per core
+  saw-ros figures --scheduler tcp://host:8786   # the parts on a Dask cluster (docs/cluster.md)
 """
 from pathlib import Path
 import sys
 
 from saw_ros.cli.errors import UserError
+from saw_ros.cli.pool import add_pool_arguments, pool_from_args
 
 HELP = "regenerate the paper's figures (PNG + CSV) and the fidelity report"
 
@@ -29,6 +32,7 @@ def add_arguments(p):
                    '(4, 7, 8, 9, 10, 11, 20, 21); the report then covers their claims only')
     p.add_argument('--quick', action='store_true', help='coarse grids and 3 s runs')
     p.add_argument('--quiet', action='store_true', help='no progress bar, no claim table')
+    add_pool_arguments(p)
 
 
 def run(args):
@@ -43,8 +47,9 @@ def run(args):
         raise UserError(f'cannot create {args.out}: {exc}') from None
     command = 'saw-ros figures' + (' --quick' if args.quick else '') + \
         (f' --only {",".join(wanted)}' if args.only else '')
-    result = reproduce(args.out, wanted, quick=args.quick, progress=not args.quiet,
-                       command=command)
+    with pool_from_args(args) as pool:
+        result = reproduce(args.out, wanted, quick=args.quick, progress=not args.quiet,
+                           command=command, pool=pool)
     if not args.quiet:
         for c in result.claims:
             mark = 'held' if c.held else 'NOT held'

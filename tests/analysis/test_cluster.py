@@ -1,0 +1,90 @@
+"""Sweeps on a Dask cluster give the local pool's numbers, bit for bit; its failures are clear."""
+import csv
+import math
+import time
+
+import numpy as np
+import pytest
+
+from saw_ros.analysis.cluster import DaskPool, pool_from
+from saw_ros.analysis.figures import sweeps
+from saw_ros.cli.main import main
+from saw_ros.core import Scenario, simulate
+from saw_ros.core.pool import batches, LocalPool, PoolError
+
+distributed = pytest.importorskip('distributed')
+
+# Small enough to be quick, large enough to be cut in two (batches keeps 16 or more per part).
+SLOPES = tuple(float(s) for s in range(0, 91, 6))
+GRID = sweeps.Grid(SLOPES, (300.0, 800.0), 0.6)
+
+
+@pytest.fixture(scope='module')
+def scheduler():
+    """Yield the address of a two-worker Dask cluster on this machine, closed after the tests."""
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+def test_batches_cut_the_same_way_whatever_the_pool():
+    assert [len(b) for b in batches(list(range(40)), 2)] == [20, 20]
+    assert [len(b) for b in batches(list(range(40)), 8)] == [20, 20]     # 16 at least
+    assert [len(b) for b in batches(list(range(10)), 4)] == [10]
+    assert sum(batches(list(range(50)), 3), []) == list(range(50))
+
+
+def test_simulate_on_the_cluster_equals_the_local_pool(scheduler):
+    scenarios = [Scenario().with_values({'conditions.slope': math.radians(s),
+                                         'surface.friction_coefficient': mu})
+                 for mu in (0.5, 1.0) for s in SLOPES]
+    local = simulate(scenarios, 0.4, record_every=10, pool=LocalPool(2))
+    with pool_from(scheduler) as pool:
+        assert isinstance(pool, DaskPool) and pool.workers == 2
+        remote = simulate(scenarios, 0.4, record_every=10, pool=pool)
+    assert np.array_equal(local.t, remote.t)
+    assert np.array_equal(local.q, remote.q)          # bit for bit, not approximately
+
+
+def test_figure_sweep_on_the_cluster_equals_the_local_pool(scheduler):
+    points = sweeps.wave_points('9', GRID)
+    local = sweeps.run_waves(points, GRID, pool=LocalPool(2))
+    counted = []
+    with DaskPool(scheduler) as pool:
+        remote = sweeps.run_waves(points, GRID, counted.append, pool)
+    assert list(remote) == list(local) == points
+    assert [local[p] for p in points] == [remote[p] for p in points]
+    assert sum(counted) == len(points) * 600
+
+
+def test_figures_command_with_scheduler_writes_the_local_csv(scheduler, tmp_path):
+    args = ['figures', '--only', '9', '--quick', '--quiet']
+    assert main(args + ['--out', str(tmp_path / 'local'), '--workers', '2']) == 0
+    assert main(args + ['--out', str(tmp_path / 'dask'), '--scheduler', scheduler]) == 0
+    rows = [list(csv.reader(open(tmp_path / d / 'figures' / 'figure9.csv')))
+            for d in ('local', 'dask')]
+    assert len(rows[0]) > 5 and rows[0] == rows[1]
+
+
+def test_unreachable_scheduler_is_one_clear_line_quickly(capsys):
+    start = time.perf_counter()
+    with pytest.raises(PoolError, match=r'cannot reach the Dask scheduler at tcp://127\.0\.0\.1:9 '
+                       r'within 1 s'):
+        pool_from('tcp://127.0.0.1:9', timeout=1.0)
+    assert main(['figures', '--only', '9', '--quick', '--quiet', '--scheduler',
+                 'tcp://127.0.0.1:9', '--scheduler-timeout', '1']) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and 'tcp://127.0.0.1:9' in err and 'within 1 s' in err
+    assert time.perf_counter() - start < 10
+
+
+def test_a_worker_without_saw_ros_is_named(tmp_path):
+    hide = tmp_path / 'hide_saw_ros.py'
+    # None in sys.modules makes both import and find_spec fail, as on a machine without it.
+    hide.write_text("import sys\nsys.modules['saw_ros'] = None\n")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, preload=[str(hide)]) as cluster:
+        worker = next(iter(cluster.scheduler_info['workers']))
+        with pytest.raises(PoolError, match='saw_ros is not importable on Dask worker') as info:
+            DaskPool(cluster.scheduler_address)
+    assert worker in str(info.value) and len(str(info.value).splitlines()) == 1
