@@ -10,6 +10,11 @@ with gravity (-g sin alpha, -g cos alpha) in the surface frame and F_ext along -
 
 S scenarios that share one robot geometry and time step are stepped together as (S, P) arrays
 (P = 2 n tips). One scenario is simply S = 1: the same code, the same numbers.
+
+The helix turns at the constant conditions.frequency (the paper's simulation), or, where
+motor.voltage > 0, at a speed omega that is a state: the DC motor of docs/motor.md against the
+load torque of the contact forces, with the back-EMF and the Coulomb friction taken implicitly
+so that any rotor inertia J >= 0 is stable at dt = 1 ms.
 """
 from __future__ import annotations
 
@@ -21,7 +26,8 @@ from typing import Callable, Optional, Sequence, Union
 import numpy as np
 
 from saw_ros.core.contact import contact_step, ContactLaw, ContactState
-from saw_ros.core.kinematics import check_no_interference, TipTable
+from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
+from saw_ros.core.motor import MotorLaw
 from saw_ros.core.params import ParameterError, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
 
@@ -39,12 +45,20 @@ def tip_table(robot: RobotParams) -> TipTable:
     return TipTable(robot)
 
 
+@functools.lru_cache(maxsize=16)
+def tip_rate_table(robot: RobotParams) -> TipRateTable:
+    return TipRateTable(robot)
+
+
 @dataclass
 class Trajectory:
     """
     Recorded states of S scenarios: t (n,), q (n, S, 6) with columns x, y, theta, vx, vy, w.
 
-    With ``contacts=True`` also the per-tip normal and tangential forces (n, S, P), N.
+    ``omega`` (n, S): the helix speed, rad/s, over the step that ended at each sample. When a
+    motor drove any scenario also its torque at the helix (N m) and current (A), (n, S); NaN for
+    the scenarios of the batch turned at constant frequency. With ``contacts=True`` also the
+    per-tip normal and tangential forces (n, S, P), N.
     """
 
     t: np.ndarray
@@ -52,6 +66,9 @@ class Trajectory:
     scenarios: Sequence[Scenario]
     normal: Optional[np.ndarray] = None
     tangential: Optional[np.ndarray] = None
+    omega: Optional[np.ndarray] = None
+    torque: Optional[np.ndarray] = None
+    current: Optional[np.ndarray] = None
 
 
 class Simulator:
@@ -75,6 +92,14 @@ class Simulator:
         self.contacts = ContactState(self.count, tips)
         self.q = np.zeros((6, self.count))       # x, y, theta, vx, vy, w
         self.phase = np.zeros(self.count)
+        self.omega = np.zeros(self.count)        # helix speed, rad/s
+        # The motor of the last step, per scenario (NaN where no motor drives the helix): torque
+        # k i at the helix (N m), current (A), the load torque of the contacts and the friction
+        # torque it met (N m).
+        self.motor_torque = np.full(self.count, np.nan)
+        self.current = np.full(self.count, np.nan)
+        self.load_torque = np.full(self.count, np.nan)
+        self.friction_torque = np.full(self.count, np.nan)
         self.steps = 0
         self._forces = np.zeros((3, self.count))
         # Net contact force (fx, fy, surface axes, N) and moment about the COM (N m) of the last
@@ -132,6 +157,7 @@ class Simulator:
         self._level = np.where(side > 0, gap, 0.0) * side           # (S, P)
         self._side = side
         self._omega_dt = np.array([TWO_PI * s.frequency * self.dt for s in scenarios])
+        self._set_motor(scenarios)
         mass = np.array([s.robot.mass for s in scenarios])
         inertia = np.array([s.robot.inertia for s in scenarios])
         self._inv_inertia = (1.0 / np.stack([mass, mass, inertia])) * self.dt
@@ -146,8 +172,68 @@ class Simulator:
         self.q[:] = 0.0
         self.q[1] = [s.conditions.gap / 2.0 for s in self.scenarios]
         self.phase[:] = 0.0
+        # A motor starts at rest; a constant-frequency helix turns from the first step.
+        self.omega[:] = np.where(self.driven, 0.0, self._omega_dt / self.dt)
+        for a in (self.motor_torque, self.current, self.load_torque, self.friction_torque):
+            a[:] = np.nan
         self.steps = 0
         self.contacts.reset()
+
+    def _set_motor(self, scenarios: Sequence[Scenario]) -> None:
+        """Fold the motor constants of the scenarios that a motor drives (docs/motor.md)."""
+        self.driven = np.array([s.motor.voltage > 0.0 for s in scenarios])
+        self.motor_on = bool(self.driven.any())
+        # A scenario that leaves its motor (or never had one) turns at its constant speed now.
+        constant = ~self.driven
+        self.omega[constant] = self._omega_dt[constant] / self.dt
+        for a in (self.motor_torque, self.current, self.load_torque, self.friction_torque):
+            a[constant] = np.nan
+        if not self.motor_on:
+            return
+        self.rate_table = tip_rate_table(self.robot)
+        tips = self.table.count
+        self._rate = np.zeros((self.count, tips), complex)
+        self._rate_work = np.zeros((self.count, tips), complex)
+        self.motor = MotorLaw([s.motor for s in scenarios], self.dt)
+        self._constant_omega = self._omega_dt / self.dt
+        # A helix faster than this was driven by something no surface can supply.
+        self._runaway = 5.0 * (np.abs(self.motor.ideal) + self._constant_omega) + 1.0
+
+    def _motor_step(self) -> None:
+        """
+        Step the helix speed: the motor against the contacts of this step (docs/motor.md).
+
+        tau_load = -sum over tips of F . dr/dphase (F the surface's force on the tip, world
+        axes; dr/dphase the body-frame rate turned by the pitch): the torque the helix needs
+        to move the tips against their contact forces.
+        """
+        rate = self.rate_table.at(self.phase, out=self._rate, work=self._rate_work)
+        rate *= self._rot
+        contacts = self.contacts
+        # F = (Ft, -side Fn): F . r' = Ft r'x - side Fn r'y.
+        np.multiply(contacts.tangential, rate.real, out=self._work)
+        load = -(self._work @ self._ones)
+        np.multiply(contacts.normal, rate.imag, out=self._work)
+        load += self._work @ self._side
+        omega = self.omega
+        new, torque, friction = self.motor.step(omega, load)
+        # Scenarios of the batch without a motor keep their constant speed (and have no motor
+        # torque, current or friction to report).
+        new = np.where(self.driven, new, self._constant_omega)
+        torque = np.where(self.driven, torque, np.nan)
+        friction = np.where(self.driven, friction, np.nan)
+        self.motor_torque[:] = torque
+        self.current[:] = torque / self.motor.k
+        self.load_torque[:] = load
+        self.friction_torque[:] = friction
+        omega[:] = new
+        if not (np.abs(new) <= self._runaway).all():
+            i = int(np.argmax(~(np.abs(new) <= self._runaway)))
+            raise DivergenceError(
+                f'simulation diverged at t = {self.t:.3f} s (scenario {i}): the helix turned at '
+                f'{new[i] / TWO_PI:.3g} Hz, far beyond the no-load speed of its motor, '
+                f'{self.motor.ideal[i] / TWO_PI:.3g} Hz (load torque {load[i]:.3g} N m); '
+                f'reduce integration.dt or soften the surfaces')
 
     @property
     def t(self) -> float:
@@ -184,7 +270,11 @@ class Simulator:
         forces += self._bias_dt
         q[3:] += forces
         q[:3] += q[3:] * self.dt
-        self.phase += self._omega_dt
+        if self.motor_on:
+            self._motor_step()
+            self.phase += self.omega * self.dt
+        else:
+            self.phase += self._omega_dt
         np.remainder(self.phase, TWO_PI, out=self.phase)
         self.steps += 1
         if not math.isfinite(q[3:].sum()) or pen.max() > self._max_penetration_any:
@@ -231,7 +321,12 @@ class Simulator:
         shape = (n_rec, self.count, self.table.count)
         fn = np.zeros(shape) if contacts else None
         ft = np.zeros(shape) if contacts else None
-        t[0], q[0] = self.t, self.q.T
+        omega = np.empty((n_rec, self.count))
+        torque = np.empty((n_rec, self.count)) if self.motor_on else None
+        current = np.empty((n_rec, self.count)) if self.motor_on else None
+        t[0], q[0], omega[0] = self.t, self.q.T, self.omega
+        if self.motor_on:
+            torque[0], current[0] = self.motor_torque, self.current
         chunk = max(1, steps // 200)
         for k in range(1, steps + 1):
             self.step()
@@ -239,6 +334,9 @@ class Simulator:
                 j = k // record_every
                 t[j] = self.t
                 q[j] = self.q.T
+                omega[j] = self.omega
+                if self.motor_on:
+                    torque[j], current[j] = self.motor_torque, self.current
                 if contacts:
                     fn[j] = self.contacts.normal
                     ft[j] = self.contacts.tangential
@@ -246,7 +344,7 @@ class Simulator:
                 progress(chunk)
         if progress is not None and steps % chunk:
             progress(steps % chunk)
-        return Trajectory(t, q, self.scenarios, fn, ft)
+        return Trajectory(t, q, self.scenarios, fn, ft, omega, torque, current)
 
 
 def _run_chunk(job):
@@ -279,6 +377,14 @@ def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[f
         done.append(part)
         if progress is not None:
             progress(steps)
-    cat = (lambda name: None if getattr(done[0], name) is None else np.concatenate(
-        [getattr(p, name) for p in done], axis=1))
-    return Trajectory(done[0].t, cat('q'), scenarios, cat('normal'), cat('tangential'))
+
+    def cat(name):
+        got = [getattr(p, name) for p in done]
+        if all(g is None for g in got):
+            return None
+        # A part without a motor recorded no torque or current: NaN, as in a mixed batch.
+        rows = next(g for g in got if g is not None).shape[0]
+        return np.concatenate([np.full((rows, len(p.scenarios)), np.nan) if g is None else g
+                               for g, p in zip(got, done)], axis=1)
+    return Trajectory(done[0].t, cat('q'), scenarios, cat('normal'), cat('tangential'),
+                      cat('omega'), cat('torque'), cat('current'))

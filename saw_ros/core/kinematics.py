@@ -110,6 +110,26 @@ def link_geometry(robot: RobotParams, phase) -> LinkGeometry:
                         down_tips=centres - r * normal)
 
 
+def tip_rates(robot: RobotParams, phase) -> np.ndarray:
+    """
+    Return d(tip position) / d(phase) in the body frame, complex, (..., 2 n) as in ``TipTable``.
+
+    From ``link_geometry``: a link centre X + i y(X, phase) moves by i dy/dphase, and its tips
+    at +-r along the normal n = i exp(i atan psi) turn with the slope psi, dn/dphase =
+    -exp(i atan psi) dpsi/dphase / (1 + psi^2). The motor's load torque is the contact forces
+    against these (docs/motor.md).
+    """
+    phase = np.asarray(phase, dtype=float)
+    n, r = robot.wave_links, robot.tip_distance
+    k = 2.0 * np.pi / robot.wavelength
+    X = hinge_x(robot) - robot.base_link_width - robot.link * (np.arange(n) + 0.5)
+    arg = k * (hinge_x(robot) - X) + phase[..., None]
+    psi = robot.amplitude * k * np.sin(arg)
+    centre_rate = -1j * robot.amplitude * np.sin(arg)
+    turn = np.exp(1j * np.arctan(psi)) * (robot.amplitude * k * np.cos(arg) / (1.0 + psi ** 2))
+    return np.concatenate([centre_rate + r * turn, centre_rate - r * turn], axis=-1)
+
+
 def base_link_end(robot: RobotParams, base_angle):
     """Rear end of the base link (it meets the backbone there), from its angle."""
     return complex(hinge_x(robot), 0.0) - robot.base_link_width * np.exp(-1j * np.asarray(
@@ -213,6 +233,17 @@ class TipTable(PhaseTable):
     @property
     def count(self) -> int:
         return self.points.shape[1]
+
+
+class TipRateTable(PhaseTable):
+    """
+    Body-frame d(tip position) / d(phase) over one wave cycle (complex, m/rad; ``tip_rates``).
+
+    Same columns as ``TipTable``; only built when a motor drives the helix.
+    """
+
+    def __init__(self, robot: RobotParams, samples: int = 2048):
+        super().__init__(tip_rates(robot, cycle_phases(samples)), samples)
 
 
 class JointTable(PhaseTable):

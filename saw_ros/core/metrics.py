@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -95,10 +95,13 @@ def steady_state_start(t, v, frequency: float, threshold: float = STEADY_CCI,
     return start
 
 
-def mean_velocity(t, x, start: float, frequency: float) -> float:
-    """Mean velocity from ``start`` over a whole number of wave cycles (to cancel the ripple)."""
+def cycle_window(t, start: float, frequency: float) -> Tuple[int, int]:
+    """
+    Return the first and last sample (i0, i1) of the whole wave cycles from ``start``.
+
+    (to the end of the record, or all of it when it is shorter than a cycle).
+    """
     t = np.asarray(t, float)
-    x = np.asarray(x, float)
     span = t[-1] - start
     if frequency > 0 and span * frequency >= 1.0:
         span = math.floor(span * frequency + 1e-9) / frequency
@@ -107,7 +110,25 @@ def mean_velocity(t, x, start: float, frequency: float) -> float:
     i1 = min(i1, len(t) - 1)
     if i1 <= i0:
         raise ValueError('need at least two samples after the start to measure a velocity')
+    return i0, i1
+
+
+def mean_velocity(t, x, start: float, frequency: float) -> float:
+    """Mean velocity from ``start`` over a whole number of wave cycles (to cancel the ripple)."""
+    t = np.asarray(t, float)
+    x = np.asarray(x, float)
+    i0, i1 = cycle_window(t, start, frequency)
     return float((x[i1] - x[i0]) / (t[i1] - t[i0]))
+
+
+def helix_frequency(omega, i0: int, i1: int) -> float:
+    """
+    Mean helix frequency (Hz) between samples i0 and i1 of the helix speed ``omega`` (rad/s).
+
+    Sample k holds the speed of the step that ended there, so samples i0 + 1 .. i1 turned the
+    helix from sample i0 to i1.
+    """
+    return float(np.mean(np.asarray(omega, float)[i0 + 1:i1 + 1])) / (2.0 * math.pi)
 
 
 @dataclass
@@ -123,24 +144,38 @@ class RunMetrics:
     cci_02pct_after: Optional[float]    # s, every velocity's CCI under 0.2 %
 
 
-def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0) -> RunMetrics:
+def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0,
+            omega=None) -> RunMetrics:
     """
     Metrics of one recorded run: t (n,), q (n, 6) = x, y, theta, vx, vy, w.
 
     The mean velocity is taken from the steady-state start (or from the middle of the run if it
     never settled, flagged by steady_from = None) to the end over whole cycles.
+
+    ``omega`` (n,): the helix speed (rad/s, ``Trajectory.omega``) of a run a motor drove, whose
+    frequency is an outcome: ``frequency`` (the no-load one) is then ignored, the cycles are
+    those of the mean helix frequency over the second half, and v_theory and AR use the mean
+    helix frequency over the averaging window (AR = v / (wavelength f_actual) in the paper's
+    terms), which ``RunMetrics.frequency`` reports.
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float)
-    vth = v_theory(robot, frequency)
+    if omega is not None:
+        frequency = helix_frequency(omega, len(t) // 2 - 1, len(t) - 1)
     if frequency <= 0:
         v = mean_velocity(t, q[:, 0], t[0], 0.0)
-        return RunMetrics(frequency, vth, v, float('nan'), None, None, None)
+        return RunMetrics(frequency, v_theory(robot, frequency), v, float('nan'), None, None,
+                          None)
     start = steady_state_start(t, q[:, 3], frequency, min_cycles=min_cycles)
-    v = mean_velocity(t, q[:, 0], start if start is not None else t[len(t) // 2], frequency)
+    from_t = start if start is not None else t[len(t) // 2]
+    v = mean_velocity(t, q[:, 0], from_t, frequency)
+    if omega is not None:
+        frequency = helix_frequency(omega, *cycle_window(t, from_t, frequency))
+    vth = v_theory(robot, frequency)
     tc, indices = velocity_cci(t, q, frequency)
     settled = {}
     for threshold in (0.02, 0.002):
         times = [settling_time(tc, index, threshold) for index in indices.values()]
         settled[threshold] = None if None in times else max(times)
-    return RunMetrics(frequency, vth, v, v / vth, start, settled[0.02], settled[0.002])
+    ar = v / vth if vth > 0 else float('nan')
+    return RunMetrics(frequency, vth, v, ar, start, settled[0.02], settled[0.002])

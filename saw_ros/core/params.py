@@ -219,20 +219,52 @@ class IntegrationParams(_Validated):
 @dataclass(frozen=True)
 class MotorParams(_Validated):
     """
-    Voltage to helix frequency: the paper does not give it; no-load linear by default.
+    The DC motor between the voltage and the helix (docs/motor.md).
 
-    f = hz_per_volt * (V - dead_voltage) for V above the dead voltage. 0.24 Hz/V puts 6 V at
-    1.44 Hz, i.e. about 10 cm/s over a rigid surface and 6.8 cm/s at AR 0.68 (paper Fig. 15).
+    Constants are referred to the helix shaft, after the paper's 156:1 gearbox. The motor constant
+    (back-EMF per rad/s = torque per ampere) is k = 1 / (2 pi hz_per_volt): an ideal motor turns
+    the helix at hz_per_volt * V at no load. With the winding resistance R and the Coulomb
+    friction tau_f the helix speed omega follows
+
+        J d omega / dt = k i - tau_f sign(omega) - tau_load,    i = (V - k omega) / R,
+
+    tau_load the work the link tips do against the contact forces per radian of helix. The
+    paper gives the gearbox (156:1) and the voltages (4-7 V) only; the constants are ours, for a
+    20 mm 6 V brushed motor (docs/motor.md says where each comes from), to be refined by
+    ``saw-ros calibrate``. ``voltage`` 0 leaves the motor out: conditions.frequency then turns
+    the helix at constant speed, as in the paper's simulation.
     """
 
     section = 'motor'
-    hz_per_volt: float = spec(0.24, 'Hz/V', 'helix frequency per volt above the dead voltage', 0.0,
-                              None, low_open=True)
-    dead_voltage: float = spec(0.0, 'V', 'voltage below which the motor does not turn', 0.0, None)
-    voltage: float = spec(0.0, 'V', 'motor voltage; above 0 it sets the helix frequency '
-                          '(hz_per_volt) instead of conditions.frequency', 0.0, 48.0)
+    hz_per_volt: float = spec(0.24, 'Hz/V', 'helix turns per second per volt of back-EMF (the '
+                              'no-load speed of a motor without friction); sets the motor '
+                              'constant k = 1 / (2 pi hz_per_volt) in V s/rad = N m/A', 0.0, None,
+                              low_open=True)
+    resistance: float = spec(8.0, 'ohm', 'winding resistance; 0 = an ideal stiff source whose '
+                             'speed does not depend on the load', 0.0, None)
+    friction_torque: float = spec(0.02, 'N m', 'Coulomb friction torque at the helix (gearbox, '
+                                  'and the helix against the links)', 0.0, None)
+    inertia: float = spec(0.006, 'kg m^2', 'rotor inertia reflected through the gearbox, plus '
+                          'the helix, at the helix shaft; 0 = quasi-static', 0.0, None)
+    voltage: float = spec(0.0, 'V', 'motor voltage; above 0 the motor drives the helix and '
+                          'conditions.frequency is ignored', 0.0, 48.0)
+
+    @property
+    def torque_constant(self) -> float:
+        """Return k = 1 / (2 pi hz_per_volt): back-EMF in V s/rad, torque in N m/A."""
+        return 1.0 / (2.0 * math.pi * self.hz_per_volt)
+
+    @property
+    def dead_voltage(self) -> float:
+        """Return the voltage below which the motor cannot beat its own friction, R tau_f / k."""
+        return self.resistance * self.friction_torque / self.torque_constant
 
     def frequency(self, voltage: float) -> float:
+        """
+        Return the helix frequency at no load, Hz: hz_per_volt (V - R tau_f / k), at least 0.
+
+        Under load the helix turns slower: the simulation finds out how much.
+        """
         if not math.isfinite(voltage) or voltage < 0.0:
             raise ParameterError(f'motor voltage = {voltage!r} is invalid: must be >= 0 V')
         return max(0.0, self.hz_per_volt * (voltage - self.dead_voltage))
@@ -263,7 +295,9 @@ class Scenario:
         """
         Helix frequency of this run, Hz.
 
-        From motor.voltage when it is set, else conditions.frequency.
+        conditions.frequency, or with motor.voltage set the motor's no-load frequency at that
+        voltage (a load slows the helix below it: the simulation records the actual speed,
+        ``Trajectory.omega``).
         """
         if self.motor.voltage > 0.0:
             return self.motor.frequency(self.motor.voltage)

@@ -45,7 +45,7 @@ def test_non_numbers_and_nan_are_refused():
 def test_with_values_validates_and_refuses_unknown_names():
     s = Scenario().with_values({'conditions.slope': math.radians(30), 'motor.voltage': 6.0})
     assert s.conditions.slope == pytest.approx(math.radians(30))
-    assert s.frequency == pytest.approx(6.0 * s.motor.hz_per_volt)
+    assert s.frequency == pytest.approx((6.0 - s.motor.dead_voltage) * s.motor.hz_per_volt)
     with pytest.raises(ParameterError, match='unknown parameter'):
         Scenario().with_values({'surface.stiffness': 1.0})
     assert set(Scenario().flat()) >= {'robot.mass', 'surface.normal_stiffness', 'conditions.gap'}
