@@ -23,7 +23,7 @@ GRID = sweeps.Grid(SLOPES, (300.0, 800.0), 0.6)
 def scheduler():
     """Yield the address of a two-worker Dask cluster on this machine, closed after the tests."""
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=':0') as cluster:
         yield cluster.scheduler_address
 
 
@@ -83,8 +83,24 @@ def test_a_worker_without_saw_ros_is_named(tmp_path):
     # None in sys.modules makes both import and find_spec fail, as on a machine without it.
     hide.write_text("import sys\nsys.modules['saw_ros'] = None\n")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, preload=[str(hide)]) as cluster:
+                                  dashboard_address=':0', preload=[str(hide)]) as cluster:
         worker = next(iter(cluster.scheduler_info['workers']))
         with pytest.raises(PoolError, match='saw_ros is not importable on Dask worker') as info:
             DaskPool(cluster.scheduler_address)
     assert worker in str(info.value) and len(str(info.value).splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_benchmark_reports_dask_overhead_pct():
+    from saw_ros.bench import cluster
+    assert cluster.KEYS == ['dask_overhead_pct', 'dask_sweep_s', 'local_sweep_s']
+    result = cluster.run(quick=True)
+    assert set(result) == set(cluster.KEYS)
+    assert result['dask_sweep_s'] > 0 and result['local_sweep_s'] > 0
+    assert math.isfinite(result['dask_overhead_pct'])
+
+
+def test_a_scheduler_without_workers_is_one_line():
+    with distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=':0') as cluster:
+        with pytest.raises(PoolError, match='has no worker'):
+            DaskPool(cluster.scheduler_address, timeout=1.0)
