@@ -4,8 +4,7 @@ from glob import glob
 from setuptools import find_packages, setup
 
 package_name = 'saw_ros'
-NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'player', 'video_source',
-         'markers')
+NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'player', 'video_source')
 
 setup(
     name=package_name,

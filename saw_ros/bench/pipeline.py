@@ -127,7 +127,7 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     """Return the loss figures of one run (see the module docstring)."""
     from saw_ros.bag import BagReader
     from saw_ros.ros.cdr import stamp_ns
-    streams = tuple(t.name for t in topics.published_by('simulator'))  # /clock + 5 streams
+    streams = topics.step_topics()  # /clock + 5 streams
     n = int(round(duration / dt))
     frames = int(round(duration * FPS))
     step_ns = int(round(dt * 1e9))

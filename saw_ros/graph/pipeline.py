@@ -51,16 +51,16 @@ def _tail(path: Path, lines: int = 15) -> str:
         return ''
 
 
-# What the graph's recorder records by default: every topic but the raw camera frames, which
-# camera.mp4 keeps (why: docs/measurements.md). ``record_topics=ALL_TOPICS`` keeps them too.
+# What the graph's recorder records by default: every topic but the raw camera frames (the
+# compressed ones are recorded; why: docs/measurements.md). ``record_topics=ALL_TOPICS`` keeps
+# them too.
 RECORDED_TOPICS = topics.recorded_topics()
 ALL_TOPICS = [t.name for t in topics.TOPICS]
 
 
 def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float = 1.0,
                  scenario: Optional[Dict[str, object]] = None, record: bool = True,
-                 bag_dir: Optional[Path] = None, video: bool = True,
-                 camera: Optional[Dict[str, object]] = None,
+                 bag_dir: Optional[Path] = None, camera: Optional[Dict[str, object]] = None,
                  reference_file: Optional[Path] = None, timeout: Optional[float] = None,
                  progress=None, record_topics: Optional[List[str]] = None) -> PipelineRun:
     """
@@ -76,9 +76,9 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     report_path = out_dir / 'comparison.json'
     if report_path.exists():
         report_path.unlink()
+    # No video file from the camera: the recording holds the frames (compressed), and encoding
+    # an mp4 beside the JPEGs cost the live graph real time (saw-ros bag video makes it after).
     camera_params = dict(camera or {})
-    if video:
-        camera_params['video_path'] = str(out_dir / 'camera.mp4')
     nodes: List[ManagedProcess] = []
     codes: Dict[str, int] = {}
     start = time.monotonic()

@@ -3,9 +3,11 @@ The robot as markers: which shapes a viewer draws, and where (pure: numpy, no me
 
 Everything is in the ``surface`` frame: x along the surfaces, y up from the bottom surface, z out
 of the picture plane. ``scene()`` turns the simulator's ground truth (pose, wave phase, contact
-points) and the tracker's estimate into a list of ``Shape``; the ``markers`` node
-(saw_ros.ros.nodes.markers) makes them visualization_msgs/Marker, and
-``docs/figures/markers_view.png`` is drawn from the same list with matplotlib.
+points) into a list of ``Shape`` and ``tracking()`` the tracker's estimate; saw_ros.ros.markers
+makes them visualization_msgs/Marker (the simulator publishes /saw/markers, the vision node
+/saw/tracking/markers), and ``docs/figures/markers_view.png`` is drawn from the same lists with
+matplotlib. The robot is the camera's (saw_ros.core.body), so a viewer and the camera image
+show the same thing.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from saw_ros.core import body
 from saw_ros.core.kinematics import base_link_end, link_geometry
 from saw_ros.core.params import RobotParams
 
@@ -22,8 +25,9 @@ Point = Tuple[float, float, float]
 Colour = Tuple[float, float, float, float]
 
 SURFACE_COLOUR: Colour = (0.55, 0.55, 0.6, 1.0)
-BODY_COLOUR: Colour = (0.25, 0.35, 0.8, 0.8)
-LINK_COLOUR: Colour = (0.1, 0.1, 0.1, 1.0)
+BODY_COLOUR: Colour = (0.25, 0.25, 0.27, 1.0)      # the camera's dark grey
+LINK_COLOUR: Colour = (0.78, 0.78, 0.76, 1.0)      # light grey plates, as on camera
+MARKER_COLOUR: Colour = (1.0, 0.25, 0.6, 1.0)      # the pink of the real markers
 TIP_COLOUR: Colour = (1.0, 0.6, 0.0, 1.0)
 STICK_COLOUR: Colour = (0.0, 0.8, 0.0, 1.0)
 SLIP_COLOUR: Colour = (0.9, 0.0, 0.0, 1.0)
@@ -33,21 +37,22 @@ FORCE_SCALE = 0.01          # m of arrow per N of contact force (1 cm per N)
 SURFACE_LENGTH = 1.0        # m of each surface drawn, centred under the robot
 SURFACE_THICKNESS = 0.002   # m
 DEPTH = 0.03                # m, extent of the robot's parts along z
-BODY_HEIGHT = 0.008         # m, the body drawn as a thin bar on the wave's axis
 TIP_DIAMETER = 0.004        # m
-MARKER_DIAMETER = 0.012     # m, the tracker's marker centres
+MARKER_DIAMETER = 0.012     # m, the true markers (the camera's 6 mm radius)
+ESTIMATE_DIAMETER = 0.007   # m, the tracker's marker centres: smaller, in front of the truth
+ESTIMATE_Z = DEPTH / 2 + 0.008   # m, in front of the body and the true markers
 ESTIMATE_LENGTH = 0.1       # m, the arrow of the tracked pose
 
 
 @dataclass(frozen=True)
 class Shape:
     """
-    One marker: kind 'cube', 'sphere', 'arrow', 'line_list' or 'sphere_list'.
+    One marker: kind 'cube', 'sphere', 'arrow', 'sphere_list' or 'triangle_list'.
 
     A cube or sphere sits at ``position``, turned by ``yaw`` about z (the pitch in the picture
-    plane), with its full extents ``scale``. An arrow, a line list and a sphere list are given
-    by ``points`` (an arrow: start, end; its ``scale``: shaft diameter, head diameter, head
-    length, as visualization_msgs wants it).
+    plane), with its full extents ``scale``. An arrow, a sphere list and a triangle list are
+    given by ``points`` (an arrow: start, end; its ``scale``: shaft diameter, head diameter, head
+    length, as visualization_msgs wants it; a triangle list: three points a triangle).
     """
 
     namespace: str
@@ -76,29 +81,48 @@ def _xyz(p: complex) -> Point:
     return (float(p.real), float(p.imag), 0.0)
 
 
-def robot(robot_params: RobotParams, x: float, y: float, theta: float,
+def _cube(namespace: str, id_: int, colour: Colour, corners, x: float, y: float, theta: float,
+          depth: float = DEPTH) -> Shape:
+    """Return a body-frame rectangle (4 complex corners, axis-aligned) as a cube at the pose."""
+    corners = np.asarray(corners)
+    centre = _to_surface([corners.mean()], x, y, theta)[0]
+    size = (float(np.ptp(corners.real)), float(np.ptp(corners.imag)), depth)
+    return Shape(namespace, id_, 'cube', colour, size, _xyz(centre), theta)
+
+
+def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: float,
           phase: Optional[float]) -> List[Shape]:
     """
-    Return the body (a bar at the pose), and with a wave phase the base link, wave links and tips.
+    Return the robot as the camera draws it (saw_ros.core.body), at pose and wave phase.
 
-    The links come from saw_ros.core.kinematics at ``phase`` (the helix joint's position), in
-    the body frame turned by the pitch ``theta`` about the centre of mass (x, y).
+    Head, spine and tail plate at the pose (x, y, pitch theta about the centre of mass), the two
+    pink markers where the camera draws them (the ground truth the tracker is measured against)
+    and, with a wave phase, the base link, each wave link as a plate from its down tip to its
+    up tip (saw_ros.core.kinematics at ``phase``, the helix joint's position) and the tips.
     """
-    shapes = [Shape('body', 0, 'cube', BODY_COLOUR, (robot_params.length, BODY_HEIGHT, DEPTH),
-                    (x, y, 0.0), theta)]
+    parts = body.outline(robot_params, gap)
+    shapes = [_cube('body', 0, BODY_COLOUR, parts.head, x, y, theta),
+              _cube('body', 1, BODY_COLOUR, parts.spine, x, y, theta),
+              _cube('body', 2, BODY_COLOUR, parts.tail, x, y, theta)]
+    for i, marker_x in enumerate((body.FRONT_MARKER_X, body.BACK_MARKER_X)):
+        centre = _to_surface([complex(marker_x, 0.0)], x, y, theta)[0]
+        # In front of the body (+z), as the markers are stuck on its side.
+        shapes.append(Shape('markers_truth', i, 'sphere', MARKER_COLOUR, (MARKER_DIAMETER,) * 3,
+                            (float(centre.real), float(centre.imag), DEPTH / 2)))
     if phase is None:
         return shapes
     g = link_geometry(robot_params, float(phase))
     hinge, rear = _to_surface([g.hinge, base_link_end(robot_params, g.base_angle)], x, y, theta)
     middle = 0.5 * (hinge + rear)
     shapes.append(Shape('base_link', 0, 'cube', LINK_COLOUR,
-                        (robot_params.base_link_width, 0.003, DEPTH), _xyz(middle),
+                        (abs(hinge - rear), 0.004, DEPTH), _xyz(middle),
                         float(np.angle(hinge - rear))))
-    half = 0.5 * robot_params.link * np.exp(1j * g.angles)
-    ends = _to_surface(np.stack([g.centres + half, g.centres - half, g.centres, g.up_tips,
-                                 g.centres, g.down_tips], axis=-1).ravel(), x, y, theta)
-    shapes.append(Shape('wave_links', 0, 'line_list', LINK_COLOUR, (0.002, 0.0, 0.0),
-                        points=tuple(_xyz(p) for p in ends)))
+    plates = _to_surface(body.link_plates(robot_params, g.centres, np.exp(1j * g.angles)),
+                         x, y, theta)
+    # Two triangles per plate (corners 0 1 2 and 0 2 3).
+    triangles = plates[:, [0, 1, 2, 0, 2, 3]].ravel()
+    shapes.append(Shape('wave_links', 0, 'triangle_list', LINK_COLOUR, (1.0, 1.0, 1.0),
+                        points=tuple(_xyz(p) for p in triangles)))
     tips = _to_surface(np.concatenate([g.up_tips, g.down_tips]), x, y, theta)
     shapes.append(Shape('tips', 0, 'sphere_list', TIP_COLOUR, (TIP_DIAMETER,) * 3,
                         points=tuple(_xyz(p) for p in tips)))
@@ -129,35 +153,39 @@ def force_arrows(x: Sequence[float], y: Sequence[float], normal: Sequence[float]
 
 def tracking(front: Optional[Point], back: Optional[Point],
              pose: Optional[Tuple[float, float, float]]) -> List[Shape]:
-    """Return the tracker's marker centres (spheres) and its pose (x, y, pitch) as an arrow."""
+    """
+    Return the tracker's marker centres (spheres) and its pose (x, y, pitch) as an arrow.
+
+    Drawn in front of the robot (z = ESTIMATE_Z) and smaller than the true markers, so that the
+    true pink marker shows around the estimate and any gap between them is visible.
+    """
     shapes = []
     for i, centre in enumerate((front, back)):
         if centre is not None:
             shapes.append(Shape('tracking_markers', i, 'sphere', TRACKING_COLOUR,
-                                (MARKER_DIAMETER,) * 3, tuple(float(c) for c in centre)))
+                                (ESTIMATE_DIAMETER,) * 3,
+                                (float(centre[0]), float(centre[1]), ESTIMATE_Z)))
     if pose is not None:
         px, py, pitch = pose
         end = (px + ESTIMATE_LENGTH * math.cos(pitch), py + ESTIMATE_LENGTH * math.sin(pitch),
-               0.0)
-        shapes.append(Shape('tracking_pose', 0, 'arrow', TRACKING_COLOUR, (0.004, 0.008, 0.012),
-                            points=((float(px), float(py), 0.0), end)))
+               ESTIMATE_Z)
+        shapes.append(Shape('tracking_pose', 0, 'arrow', TRACKING_COLOUR, (0.003, 0.006, 0.01),
+                            points=((float(px), float(py), ESTIMATE_Z), end)))
     return shapes
 
 
 def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float],
-          phase: Optional[float], contacts=None, front: Optional[Point] = None,
-          back: Optional[Point] = None, tracked_pose=None,
-          force_scale: float = FORCE_SCALE) -> List[Shape]:
+          phase: Optional[float], contacts=None, force_scale: float = FORCE_SCALE) -> List[Shape]:
     """
-    Return every shape of one instant.
+    Return every shape of the ground truth at one instant (what /saw/markers draws).
 
-    ``pose``: (x, y, pitch) of the ground truth; ``contacts``: a structured array with the
+    ``pose``: (x, y, pitch); ``phase``: the helix phase; ``contacts``: a structured array with the
     fields of /saw/contacts (x, y, normal_force, tangential_force, surface, slipping) or None.
     """
     x, y, theta = pose
-    shapes = surfaces(gap, x) + robot(robot_params, x, y, theta, phase)
+    shapes = surfaces(gap, x) + robot(robot_params, gap, x, y, theta, phase)
     if contacts is not None and len(contacts):
         shapes += force_arrows(contacts['x'], contacts['y'], contacts['normal_force'],
                                contacts['tangential_force'], contacts['surface'],
                                contacts['slipping'], force_scale)
-    return shapes + tracking(front, back, tracked_pose)
+    return shapes

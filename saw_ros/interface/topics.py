@@ -47,6 +47,7 @@ TRACKING_STATUS = '/saw/tracking/status'
 COMPARISON = '/saw/comparison'
 READY = '/saw/ready'
 MARKERS = '/saw/markers'
+TRACKING_MARKERS = '/saw/tracking/markers'
 PREFIX = '/saw/'
 
 TOPICS: Tuple[Topic, ...] = (
@@ -84,8 +85,10 @@ TOPICS: Tuple[Topic, ...] = (
           '', 'tracker state per frame'),
     Topic(COMPARISON, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'comparison', '~1 Hz',
           '', 'AR of simulation and tracking, their relative error'),
-    Topic(MARKERS, 'visualization_msgs/msg/MarkerArray', 'tracking', 'markers', '60 Hz',
-          'surface', 'surfaces, robot, contact forces and tracked estimate for RViz / Foxglove'),
+    Topic(MARKERS, 'visualization_msgs/msg/MarkerArray', 'tracking', 'simulator', '60 Hz',
+          'surface', 'surfaces, robot and contact forces for RViz / Foxglove'),
+    Topic(TRACKING_MARKERS, 'visualization_msgs/msg/MarkerArray', 'tracking', 'vision',
+          '60 Hz', 'surface', "the tracker's marker centres and pose, over /saw/markers"),
     Topic(READY, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'camera, comparison, vision',
           'once per node', '', "node's status: name, level OK, 'ready': 'true' once its inputs "
           'matched (saw_ros.ros.ready)', recorded=False),
@@ -99,6 +102,11 @@ def topic(name: str) -> Topic:
 
 def published_by(node: str) -> Tuple[Topic, ...]:
     return tuple(t for t in TOPICS if node in t.publisher.split(', '))
+
+
+def step_topics() -> Tuple[str, ...]:
+    """Return what the simulator publishes once per step, in order: its clock and stream rows."""
+    return tuple(t.name for t in published_by('simulator') if t.qos in ('clock', 'stream'))
 
 
 def recorded_topics() -> List[str]:

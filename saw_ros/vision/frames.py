@@ -32,6 +32,7 @@ from typing import Callable, Iterable, List, NamedTuple, Optional, Sequence
 import cv2
 import numpy as np
 
+from saw_ros.core import body
 from saw_ros.core.kinematics import base_link_end, cycle_phases, hinge_x, link_geometry, PhaseTable
 from saw_ros.core.params import RobotParams, spec
 from saw_ros.vision.camera import CameraModel
@@ -75,8 +76,9 @@ class RenderOptions:
     texture: bool = spec(True, '', 'textured wall behind the track (false: flat grey)')
     seed: int = spec(0, '', 'random seed of texture and noise')
     marker_radius: float = spec(0.006, 'm', 'radius of a pink marker', 0.0, None, low_open=True)
-    front_marker: float = spec(0.16, 'm', 'body x of the front marker (on the body axis, y = 0)')
-    back_marker: float = spec(-0.16, 'm', 'body x of the back marker')
+    front_marker: float = spec(body.FRONT_MARKER_X, 'm',
+                               'body x of the front marker (on the body axis, y = 0)')
+    back_marker: float = spec(body.BACK_MARKER_X, 'm', 'body x of the back marker')
     silicone_thickness: float = spec(0.012, 'm', 'thickness of the silicone on each surface')
     board_thickness: float = spec(0.018, 'm', 'thickness of the board behind each surface')
 
@@ -114,10 +116,6 @@ class _GeometryTable(PhaseTable):
         return row[:n], d / np.abs(d), row[2 * n], row[2 * n + 1:3 * n + 1], row[3 * n + 1:]
 
 
-def _rect(x0, x1, y0, y1):
-    return np.array([x0 + 1j * y0, x1 + 1j * y0, x1 + 1j * y1, x0 + 1j * y1])
-
-
 class Renderer:
     """Renders frames of one robot between its surfaces, seen by ``camera``."""
 
@@ -127,13 +125,9 @@ class Renderer:
         self.scene = scene
         self._table = _GeometryTable(robot)
         self._rng = np.random.default_rng(options.seed)
-        L = robot.length
         self._hinge = hinge_x(robot)
-        half = min(0.013, 0.45 * gap)
-        self._head = _rect(self._hinge, L / 2.0, -half, half)
-        self._spine = _rect(-L / 2.0, self._hinge, -0.003, 0.003)
-        self._tail = _rect(-L / 2.0, -L / 2.0 + 0.03, -0.012, 0.012)
-        self._link_half = 0.3 * robot.link
+        outline = body.outline(robot, gap)
+        self._head, self._spine, self._tail = outline.head, outline.spine, outline.tail
         self._background = self._make_background()
         self._frame = np.empty_like(self._background)
         self._noise = self._make_noise() if options.noise > 0 else None
@@ -159,7 +153,7 @@ class Renderer:
         t, b = opt.silicone_thickness, opt.board_thickness
         g = self.gap
         for y0, y1 in ((-t - b, -t), (g + t, g + t + b)):
-            self._fill(img, [_rect(x0, x1, y0, y1)], BOARD)
+            self._fill(img, [body.rectangle(x0, x1, y0, y1)], BOARD)
         return img
 
     def _make_noise(self) -> np.ndarray:
@@ -268,11 +262,7 @@ class Renderer:
         bar = 0.002j * (hinge - base_end) / abs(hinge - base_end)
         self._fill(out, [world(np.array([hinge + bar, base_end + bar, base_end - bar,
                                          hinge - bar]))], BASE_LINK)
-        along = self._link_half * direction
-        normal = 1j * direction * self.robot.tip_distance
-        corners = np.stack([centres + along + normal, centres - along + normal,
-                            centres - along - normal, centres + along - normal], axis=-1)
-        pix = self._fixed(world(corners))
+        pix = self._fixed(world(body.link_plates(self.robot, centres, direction)))
         for poly in pix:
             cv2.fillConvexPoly(out, poly, LINK, cv2.LINE_AA, SHIFT)
         cv2.polylines(out, list(pix), True, LINK_EDGE, 1, cv2.LINE_AA, SHIFT)

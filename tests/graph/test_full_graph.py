@@ -23,7 +23,7 @@ SLOPE_DEG, VOLTS = 10.0, 6.0
 @pytest.fixture(scope='module')
 def graph_run(tmp_path_factory):
     out = tmp_path_factory.mktemp('graph')
-    run = run_pipeline(out, duration=4.0, real_time_factor=0.5, video=False,
+    run = run_pipeline(out, duration=4.0, real_time_factor=0.5,
                        bag_dir=out / 'bag',
                        scenario={'conditions.slope': math.radians(SLOPE_DEG),
                                  'motor.voltage': VOLTS})
@@ -52,3 +52,20 @@ def test_in_process_campaign_gives_the_same_numbers_as_the_nodes_over_dds(graph_
     assert inproc.ar_sim == pytest.approx(dds['ar_sim'], rel=0.005)
     assert inproc.ar_tracked == pytest.approx(dds['ar_tracked'], rel=0.005)
     assert inproc.v_theory == pytest.approx(dds['v_theory_m_s'], rel=1e-9)
+
+
+def test_the_bag_opens_in_a_viewer_and_gives_back_the_camera_video(graph_run, tmp_path):
+    """What docs/viewers.md promises of the main job's recording, and saw-ros bag video."""
+    from saw_ros.cli.commands.bag import bag_video
+    from saw_ros.vision.video import video_info
+    counts = {name: t.count for name, t in BagReader(str(graph_run.bag_dir)).info()[
+        'topics'].items()}
+    frames = counts[topics.IMAGE_COMPRESSED]
+    assert frames == 4 * 60 and topics.IMAGE not in counts       # frames k / 60 s, k = 1..240
+    # The robot at 60 Hz of simulated time (stamps 1 ms .. 4 s: 241 slots), the estimate every
+    # frame.
+    assert counts[topics.MARKERS] == 4 * 60 + 1
+    assert counts[topics.TRACKING_MARKERS] == frames
+    written, fps = bag_video(graph_run.bag_dir, tmp_path / 'camera.mp4')
+    assert (written, fps) == (frames, 60.0)
+    assert video_info(tmp_path / 'camera.mp4')[:2] == (60.0, frames)

@@ -1,154 +1,127 @@
 """
-The markers node through real topics.
+The robot for viewers: /saw/markers from the simulator, through real topics.
 
-A feeder publishes hand-made ground truth (pose, contacts, helix phase) every simulated
-millisecond and a tracker's estimate; the node, in the same executor, draws them on /saw/markers.
+The simulator node runs in this process's executor at full speed for 0.1 s of simulated time;
+a subscriber decodes its MarkerArrays with rclpy (not our code) and checks them against the
+core's own state at the same stamps.
 """
 import math
 import time
 
-from geometry_msgs.msg import PointStamped, PoseStamped
 import numpy as np
 import pytest
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
-from saw_ros.core.params import Scenario
+from saw_ros.analysis.figures.markers_view import snapshot
+from saw_ros.core import Scenario, Simulator
+from saw_ros.interface import scene_markers
 from saw_ros.interface import topics as table
 from saw_ros.ros import conversions as conv
-from saw_ros.ros.nodes.markers import MarkersNode, next_due
-from saw_ros.ros.qos import profile, STREAM_QOS, with_depth
-from sensor_msgs.msg import JointState, PointCloud2
-from visualization_msgs.msg import Marker, MarkerArray
+from saw_ros.ros import markers
 
 pytestmark = pytest.mark.ros
 
-STEPS = 101                      # 0 .. 100 ms of stamps
-X, Y, THETA = 0.12, 0.0225, 0.05
-NORMAL = np.array([2.0, 3.0])
-TANGENTIAL = np.array([0.5, -1.0])
+STEPS = 100
 
 
-def contacts():
-    points = np.zeros(2, conv.CONTACT_DTYPE)
-    points['x'] = [0.01, 0.05]
-    points['y'] = [0.0, 0.045]
-    points['normal_force'] = NORMAL
-    points['tangential_force'] = TANGENTIAL
-    points['link'] = [3, 7]
-    points['surface'] = [conv.BOTTOM, conv.TOP]
-    points['slipping'] = [0, 1]
-    return points
+def test_marker_array_cdr_is_what_rclpy_serializes():
+    from rclpy.serialization import deserialize_message, serialize_message
+    from visualization_msgs.msg import MarkerArray
+    scenario, pose, phase, contacts = snapshot(0.7)
+    shapes = scene_markers.scene(scenario.robot, scenario.conditions.gap, pose, phase, contacts)
+    shapes += scene_markers.tracking((0.3, 0.02, 0.0), (0.0, 0.021, 0.0), (0.15, 0.02, 0.05))
+    ours = markers.marker_array_cdr(shapes, 1_234_567_891)
+    # Colours are float32 on the wire: compare after rclpy's own round trip of its message.
+    theirs = deserialize_message(serialize_message(markers.marker_array(shapes, 1_234_567_891)),
+                                 MarkerArray)
+    decoded = deserialize_message(ours, MarkerArray)
+    assert decoded == theirs
+    assert len(ours) == len(serialize_message(theirs))
 
 
-class Feeder(Node):
-    def __init__(self, context):
-        super().__init__('feeder', context=context)
-        stream = with_depth(STREAM_QOS, 1000)
-        self.pose = self.create_publisher(PoseStamped, table.POSE, stream)
-        self.contacts = self.create_publisher(PointCloud2, table.CONTACTS, stream)
-        self.joints = self.create_publisher(JointState, table.JOINT_STATES, stream)
-        self.front = self.create_publisher(PointStamped, table.TRACKING_FRONT, profile('tracking'))
-        self.tracked = self.create_publisher(PoseStamped, table.TRACKING_POSE,
-                                             profile('tracking'))
-        self.arrays = []
-        self.create_subscription(MarkerArray, table.MARKERS, self.arrays.append,
-                                 profile('tracking'))
+def test_decimator_starts_one_array_per_slot_of_stamps():
+    decimator = markers.Decimator(60.0)
+    due = [k for k in range(0, 101) if decimator.due(k * 1_000_000)]
+    assert due == [0, 17, 34, 50, 67, 84, 100]
+    assert not any(markers.Decimator(0.0).due(k * 1_000_000) for k in range(100))
 
 
-def spin_until(executor, condition, timeout=10.0):
-    end = time.monotonic() + timeout
-    while not condition() and time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.05)
-    assert condition()
+def test_simulator_publishes_the_robot_at_60_hz_of_stamps(ros_context):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from saw_ros.graph.process import wait_for
+    from saw_ros.ros.nodes.simulator import SimulatorNode
+    from saw_ros.ros.qos import profile
+    from visualization_msgs.msg import Marker, MarkerArray
 
-
-def by_namespace(array, namespace):
-    return [m for m in array.markers if m.ns == namespace]
-
-
-def test_markers_draw_truth_forces_and_tracking_at_60_hz_of_stamps(ros_context):
+    viewer = Node('viewer', context=ros_context)
+    arrays = []
+    viewer.create_subscription(MarkerArray, table.MARKERS, arrays.append, profile('tracking'))
+    simulator = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter('real_time_factor', value=0.0), Parameter('duration', value=STEPS / 1000),
+        Parameter('wait_for_subscribers', value=0)])
     executor = SingleThreadedExecutor(context=ros_context)
-    feeder = Feeder(ros_context)
-    node = MarkersNode(context=ros_context)
-    executor.add_node(feeder)
-    executor.add_node(node)
+    for node in (viewer, simulator):
+        executor.add_node(node)
+    spin = lambda t: executor.spin_once(timeout_sec=t)  # noqa: E731
     try:
-        spin_until(executor, lambda: all(p.get_subscription_count() > 0 for p in (
-            feeder.pose, feeder.contacts, feeder.joints, feeder.front, feeder.tracked)))
-        spin_until(executor, lambda: feeder.count_publishers(table.MARKERS) > 0)
-        front = PointStamped()
-        front.point.x, front.point.y = 0.28, 0.0225
-        feeder.front.publish(front)
-        feeder.tracked.publish(conv.pose_msg(0.11, 0.02, 0.1, 0))
-        spin_until(executor, lambda: node.front is not None and node.tracked is not None)
-        cloud = conv.ContactsCdr()
-        for step in range(STEPS):
-            ns = step * 1_000_000
-            feeder.pose.publish(conv.pose_cdr(X, Y, THETA, ns))
-            joints = JointState(name=['helix'], position=[0.3])
-            joints.header.stamp = conv.time_msg(ns)
-            feeder.joints.publish(joints)
-            feeder.contacts.publish(cloud(contacts(), ns))
-            executor.spin_once(timeout_sec=0)
-        spin_until(executor, lambda: len(feeder.arrays) >= 7)
-        end = time.monotonic() + 0.5
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
+        # Matched before the first step (no spin has run a tick yet), so that no array is lost.
+        simulator.started = False
+        assert wait_for(lambda: simulator._pub_markers.get_subscription_count() > 0, 10.0,
+                        spin=spin)
+        simulator.started = True
+        simulator._rebase(time.monotonic())
+        assert wait_for(lambda: simulator.finished, 20.0, spin=spin)
+        assert wait_for(lambda: len(arrays) >= 7, 5.0, spin=spin)
     finally:
         executor.shutdown()
-        node.destroy_node()
-        feeder.destroy_node()
+        simulator.destroy_node()
+        viewer.destroy_node()
 
-    # Decimated by stamps: one array per 1/60 s slot, at the first stamp in it.
-    stamps = [conv.stamp_ns(a.markers[0].header.stamp) // 1_000_000 for a in feeder.arrays]
-    assert stamps == [0, 17, 34, 50, 67, 84, 100]
-    assert next_due(0, 60.0) == 16_666_667 and next_due(49_000_000, 60.0) == 50_000_000
+    # Stamps 1..100 ms: one array at the first stamp of each 1/60 s slot.
+    stamps = [conv.stamp_ns(a.markers[0].header.stamp) // 1_000_000 for a in arrays]
+    assert stamps == [1, 17, 34, 50, 67, 84, 100]
 
-    gap = Scenario().conditions.gap
-    for array in feeder.arrays:
+    # The core, same parameters: every array drawn at that step's pose and phase.
+    scenario = Scenario()
+    sim = Simulator(scenario)
+    states = {}
+    for step in range(1, STEPS + 1):
+        sim.step()
+        states[step] = (sim.q[:3, 0].copy(), float(sim.phase[0]), int(sim.contacts.touching.sum()))
+    for array, step in zip(arrays, stamps):
+        (x, y, theta), phase, touching = states[step]
         assert array.markers[0].action == Marker.DELETEALL
         assert all(m.header.frame_id == 'surface' for m in array.markers)
-        surfaces = by_namespace(array, 'surfaces')
-        assert sorted(m.pose.position.y for m in surfaces) == pytest.approx([0.0, gap])
-        assert all(m.type == Marker.CUBE for m in surfaces)
-        body, = by_namespace(array, 'body')
-        assert body.type == Marker.CUBE
-        assert (body.pose.position.x, body.pose.position.y) == pytest.approx((X, Y))
-        assert 2 * math.atan2(body.pose.orientation.z, body.pose.orientation.w) == \
-            pytest.approx(THETA)
-        assert len(by_namespace(array, 'base_link')) == 1
-        links, = by_namespace(array, 'wave_links')
-        tips, = by_namespace(array, 'tips')
-        n = Scenario().robot.wave_links
-        assert len(links.points) == 6 * n and len(tips.points) == 2 * n
-        # One arrow per touching tip, 1 cm per N, away from its surface, green stick / red slip.
-        arrows = by_namespace(array, 'contact_forces')
-        assert [m.type for m in arrows] == [Marker.ARROW] * 2
-        for m, fn, ft, up in zip(arrows, NORMAL, TANGENTIAL, (1, -1)):
-            start, end = m.points
-            assert end.x - start.x == pytest.approx(0.01 * ft, abs=1e-6)
-            assert end.y - start.y == pytest.approx(0.01 * fn * up, abs=1e-6)
-            assert math.hypot(end.x - start.x, end.y - start.y) == \
-                pytest.approx(0.01 * math.hypot(fn, ft), abs=1e-6)
-        assert (arrows[0].color.g, arrows[0].color.r) == (pytest.approx(0.8), 0.0)
-        assert (arrows[1].color.r, arrows[1].color.g) == (pytest.approx(0.9), 0.0)
-        # The tracker's estimate: the front marker centre and the tracked pose's arrow.
-        sphere, = by_namespace(array, 'tracking_markers')
-        assert (sphere.type, sphere.pose.position.x) == (Marker.SPHERE, pytest.approx(0.28))
-        pose_arrow, = by_namespace(array, 'tracking_pose')
-        start, end = pose_arrow.points
-        assert (start.x, start.y) == pytest.approx((0.11, 0.02))
-        assert math.atan2(end.y - start.y, end.x - start.x) == pytest.approx(0.1)
+        ns = {}
+        for m in array.markers[1:]:
+            ns.setdefault(m.ns, []).append(m)
+        surfaces = sorted(m.pose.position.y for m in ns['surfaces'])
+        assert surfaces == pytest.approx([0.0, scenario.conditions.gap])
+        expected = scene_markers.robot(scenario.robot, scenario.conditions.gap, x, y, theta,
+                                       phase)
+        head = ns['body'][0]
+        assert (head.pose.position.x, head.pose.position.y) == pytest.approx(
+            expected[0].position[:2], abs=1e-12)
+        assert 2 * math.atan2(head.pose.orientation.z, head.pose.orientation.w) == \
+            pytest.approx(theta, abs=1e-12)
+        plates, = ns['wave_links']
+        want = next(s for s in expected if s.namespace == 'wave_links')
+        np.testing.assert_allclose([(p.x, p.y) for p in plates.points],
+                                   np.array(want.points)[:, :2], atol=1e-12)
+        assert len(ns.get('contact_forces', [])) == touching
 
 
 def test_viewer_configs_name_our_topics():
     import json
     from pathlib import Path
     docs = Path(__file__).resolve().parents[2] / 'docs'
-    layout = json.dumps(json.loads((docs / 'foxglove_layout.json').read_text()))
-    for name in (table.MARKERS, table.IMAGE, table.COMPARISON, table.TWIST,
-                 table.TRACKING_TWIST_SMOOTHED):
-        assert name in layout and name in table.BY_NAME
-    assert '"followTf": "surface"' in layout
+    layout = json.loads((docs / 'foxglove_layout.json').read_text())
+    text = json.dumps(layout)
+    for name in (table.MARKERS, table.TRACKING_MARKERS, table.IMAGE_COMPRESSED, table.COMPARISON,
+                 table.TWIST, table.TRACKING_TWIST_SMOOTHED):
+        assert name in text and name in table.BY_NAME
+    assert layout['configById']['3D!saw_markers']['followTf'] == 'surface'
     rviz = (docs / 'saw_ros.rviz').read_text()
-    assert 'Fixed Frame: surface' in rviz and 'Value: /saw/markers' in rviz
+    assert 'Fixed Frame: surface' in rviz
+    for name in (table.MARKERS, table.TRACKING_MARKERS, table.IMAGE):
+        assert f'Value: {name}\n' in rviz

@@ -57,7 +57,10 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
     from saw_ros.cli.commands.track import track_video
 
     camera, vision, source, executor, video, qos = nodes
-    got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image', 'jpeg')}
+    from visualization_msgs.msg import MarkerArray
+    got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image', 'jpeg',
+                           'markers')}
+    source.create_subscription(MarkerArray, table.TRACKING_MARKERS, got['markers'].append, qos)
     source.create_subscription(PoseStamped, table.TRACKING_POSE, got['pose'].append, qos)
     source.create_subscription(TwistStamped, table.TRACKING_STEADY_SPEED, got['steady'].append,
                                qos)
@@ -101,7 +104,8 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
         assert wait_for(lambda: vision.results >= due, 20.0,
                         spin=lambda t: executor.spin_once(timeout_sec=t)), \
             (camera.frames, vision.results, due)
-    wait_for(lambda: min(len(got[k]) for k in ('status', 'pose', 'front', 'image', 'jpeg'))
+    wait_for(lambda: min(len(got[k]) for k in ('status', 'pose', 'front', 'image', 'jpeg',
+                                               'markers'))
              >= vision.results and got['steady'], 5.0,
              spin=lambda t: executor.spin_once(timeout_sec=t))
 
@@ -115,6 +119,13 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
     assert got['info'][-1].k[0] == pytest.approx(1200.0)
     assert all(s.status[0].message == 'ok' for s in got['status'])
     assert len(got['pose']) == frames and len(got['front']) == frames
+    # The estimate for a viewer, every frame: the front marker's sphere where it was measured.
+    assert len(got['markers']) == frames
+    for array, front in zip(got['markers'][-5:], got['front'][-5:]):
+        sphere = next(m for m in array.markers if m.ns == 'tracking_markers' and m.id == 0)
+        assert (sphere.pose.position.x, sphere.pose.position.y) == pytest.approx(
+            (front.point.x, front.point.y))
+        assert array.markers[0].header.stamp == front.header.stamp
     last = got['pose'][-1]
     t_last = conv.stamp_ns(last.header.stamp) / 1e9
     assert last.header.frame_id == 'surface'

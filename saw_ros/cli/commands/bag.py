@@ -10,6 +10,10 @@ Inspect and record bags (rosbag2 directories with MCAP storage).
   saw-ros bag record [...]    run the recorder node until Ctrl-C (same as
                               ``ros2 run saw_ros recorder``; see docs/bags.md)
   saw-ros bag play BAG [...]  run the player node on BAG
+  saw-ros bag video BAG [-o camera.mp4]
+                              the camera frames of a recording (its compressed stream, or
+                              the raw one) as a video you can watch or track, at the rate
+                              their stamps give
 """
 from __future__ import annotations
 
@@ -20,7 +24,7 @@ import sys
 
 from saw_ros.cli.errors import UserError
 
-HELP = 'bag info / record / play (rosbag2-compatible MCAP bags)'
+HELP = 'bag info / record / play / video (rosbag2-compatible MCAP bags)'
 
 
 def add_arguments(p):
@@ -36,6 +40,11 @@ def add_arguments(p):
     play = sub.add_parser('play', help='play a bag onto its topics, with /clock')
     play.add_argument('bag')
     play.add_argument('-r', '--rate', type=float, default=1.0, help='speed factor')
+    video = sub.add_parser('video', help="write a recording's camera frames to an .mp4")
+    video.add_argument('bag')
+    video.add_argument('-o', '--output', default='camera.mp4', help='video file (camera.mp4)')
+    video.add_argument('--topic', default='', help='image topic (default: the compressed '
+                       'camera stream if recorded, else the raw one)')
 
 
 def _stamp(ns) -> str:
@@ -118,5 +127,70 @@ def run(args):
         if not os.path.exists(args.bag):
             raise UserError(f'no bag at {args.bag}')
         return _node('player', {'bag': os.path.abspath(args.bag), 'rate': float(args.rate)})
+    if args.bag_command == 'video':
+        from saw_ros.bag.reader import BagReadError
+        try:
+            frames, fps = bag_video(args.bag, args.output, args.topic or None)
+        except BagReadError as exc:
+            raise UserError(str(exc)) from None
+        print(f'{args.output}: {frames} frames at {fps:g} fps')
+        return 0
     print(f'unknown action {args.bag_command}', file=sys.stderr)
     return 2
+
+
+def bag_video(bag, output, topic=None):
+    """
+    Write the camera frames of ``bag`` to the video ``output``; return (frames, fps).
+
+    The frames' rate comes from their stamps (the median interval), in the order recorded.
+    A recording without camera frames is a UserError that names the image topics it has.
+    """
+    import numpy as np
+
+    from saw_ros.bag.reader import BagReader
+    from saw_ros.interface import topics
+    from saw_ros.vision import compressed
+    from saw_ros.vision.video import VideoWriter
+    reader = BagReader(bag)
+    recorded = reader.info()['topics']
+    candidates = [topic] if topic else [topics.IMAGE_COMPRESSED, topics.IMAGE]
+    chosen = next((t for t in candidates if t in recorded and recorded[t].count), None)
+    if chosen is None:
+        images = [t.name for t in recorded.values() if t.type.startswith('sensor_msgs/msg/')
+                  and 'Image' in t.type]
+        raise UserError(f'{bag} holds no frames on {" or ".join(candidates)}; image topics '
+                        f'recorded: {", ".join(images) or "none"}')
+    fps = _fps_of(reader, chosen)
+    frames = 0
+    writer = None
+    try:
+        for _, msg in reader.decoded_messages([chosen]):
+            if hasattr(msg, 'format'):
+                frame, _ = compressed.decode(msg.format, bytes(msg.data))
+            else:
+                frame = np.frombuffer(bytes(msg.data), np.uint8).reshape(
+                    msg.height, msg.width, -1)
+                if msg.encoding == 'rgb8':
+                    frame = frame[:, :, ::-1]
+            if writer is None:
+                writer = VideoWriter(output, fps, frame.shape[1::-1])
+            writer.write(np.ascontiguousarray(frame))
+            frames += 1
+    finally:
+        if writer is not None:
+            writer.close()
+    return frames, fps
+
+
+def _fps_of(reader, topic) -> float:
+    """Return the frame rate of ``topic`` from the median interval of its first stamps."""
+    import numpy as np
+    stamps = []
+    for _, msg in reader.decoded_messages([topic]):
+        stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        if len(stamps) >= 61:
+            break
+    gaps = np.diff(stamps)
+    gaps = gaps[gaps > 0]
+    return round(1e9 / float(np.median(gaps)), 3) if len(gaps) else 60.0

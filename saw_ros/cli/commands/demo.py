@@ -5,13 +5,15 @@ Starts simulator, camera, vision, comparison and recorder as separate processes 
 domain, runs about 10 s of simulated time, prints the comparison (AR of simulation and tracking,
 their relative error, v_theory), leaves the recording in bags/ and the report (report.png,
 comparison.json, camera.mp4, the nodes' logs) in the output folder it names. The recording holds
-every topic but the raw camera frames (camera.mp4 has them). Ctrl-C stops every process it started.
-Exit code 1 if any node failed.
+every topic but the raw camera frames (their JPEG stream is in; camera.mp4 is made from it after
+the run, outside the live graph). Ctrl-C stops every process it started. Exit code 1 if any node
+failed.
 """
 from pathlib import Path
 import sys
 import time
 
+from saw_ros.cli.commands.bag import bag_video
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
 from saw_ros.graph.pipeline import format_comparison, PipelineError, run_pipeline, write_report
 from saw_ros.interface.config import config_path
@@ -43,7 +45,6 @@ def run(args):
     spinner = _Spinner(args.duration / max(args.real_time_factor, 0.1))
     try:
         result = run_pipeline(out, args.duration, args.real_time_factor, changed,
-                              video=not args.no_video,
                               reference_file=config_path('reference_paper.csv'),
                               progress=spinner)
     except PipelineError as exc:
@@ -57,9 +58,10 @@ def run(args):
         print(f'recording           {result.bag_dir}')
         if result.comparison:
             print(f'report              {write_report(result)}')
+        if not args.no_video:
+            frames, fps = bag_video(result.bag_dir, out / 'camera.mp4')
+            print(f'camera video        {out / "camera.mp4"} ({frames} frames, {fps:g} fps)')
     print(f'comparison (JSON)   {out / "comparison.json"}')
-    if (out / 'camera.mp4').exists():
-        print(f'camera video        {out / "camera.mp4"}')
     print(f'node logs           {out / "logs"}')
     if failed:
         print(f'saw-ros demo: nodes failed: {failed}', file=sys.stderr)

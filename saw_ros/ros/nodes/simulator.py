@@ -3,7 +3,8 @@ The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time
 
 Steps ``core.Simulator`` and publishes every step exactly once (stamps = simulated time, 1 ms
 apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts, /saw/contact_wrench and
-/saw/joint_states. docs/simulator.md lists the topics, frames, QoS and parameters.
+/saw/joint_states; and the robot for RViz / Foxglove on /saw/markers at ``markers_rate`` (60 Hz)
+of simulated time. docs/simulator.md lists the topics, frames, QoS and parameters.
 
 Time. A wall-clock timer wakes the node every few milliseconds; each wake-up runs as many steps
 as are due at ``real_time_factor`` (steps = rtf * elapsed wall time / dt), not one step per tick:
@@ -37,17 +38,18 @@ from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
 from saw_ros.core.params import spec_meta
-from saw_ros.interface import topics
+from saw_ros.interface import scene_markers, topics
 from saw_ros.ros import conversions as conv
+from saw_ros.ros import markers
 from saw_ros.ros.params import declare_spec
 from saw_ros.ros.params import ScenarioParameters, SIMULATOR_EXCLUDED
-from saw_ros.ros.qos import message_class, publisher_profile
+from saw_ros.ros.qos import message_class, profile, publisher_profile
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_node
 from std_srvs.srv import Trigger
 
-# What the node publishes every step, in this order (tests and benchmarks subscribe from here).
-# (saw_ros.interface.topics: the simulator's rows of the topic table.)
-TOPICS = {t.name: message_class(t.type) for t in topics.published_by('simulator')}
+# What the node publishes every step, in this order (tests and benchmarks subscribe from here):
+# the simulator's rows of the topic table (saw_ros.interface.topics) with a per-step profile.
+TOPICS = {name: message_class(topics.topic(name).type) for name in topics.step_topics()}
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
 MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
@@ -100,6 +102,11 @@ class SimulatorNode(Node):
          self._pub_joints) = self._publishers_all
         self._contacts_cdr = conv.ContactsCdr()
         self._joints_cdr = conv.JointStateCdr(self._joint_names)
+        # The robot for a viewer, from this node's own state: at markers_rate of simulated time.
+        self._markers = markers.Decimator(float(self.get_parameter('markers_rate').value))
+        self._pub_markers = self.create_publisher(
+            message_class(topics.topic(topics.MARKERS).type), topics.MARKERS,
+            profile(topics.topic(topics.MARKERS).qos))
 
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -261,6 +268,11 @@ class SimulatorNode(Node):
         self._pub_wrench.publish(conv.wrench_cdr(fx, fy, mz, ns))
         self._pub_joints.publish(self._joints_cdr(float(sim.phase[0]), self._omega, angles,
                                                   rates, ns))
+        if self._markers.due(ns):
+            scenario = self.params.scenario
+            self._pub_markers.publish(markers.marker_array_cdr(scene_markers.scene(
+                scenario.robot, scenario.conditions.gap, (x, y, theta), float(sim.phase[0]),
+                points), ns))
 
     def close(self) -> None:
         """
@@ -291,6 +303,9 @@ OWN_PARAMETERS = (
                                             'fast as possible', 0.0, None)),
     ('duration', 0.0, spec_meta('s', 'simulated time, then the node exits with code 0; 0 = run '
                                      'until stopped', 0.0, None)),
+    ('markers_rate', markers.RATE, spec_meta(
+        'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers per simulated second '
+        '(at most one per step); 0 = none', 0.0, None, read_only=True)),
     ('wait_for_subscribers', 0, spec_meta('', 'before the first step, wait until every topic has '
                                               'at least this many subscribers (tests, benchmarks, '
                                               'recordings that must see every step); 0 = start '

@@ -17,7 +17,9 @@ in frame ``surface`` (docs/vision.md):
 - /saw/tracking/steady_speed    geometry_msgs/TwistStamped: steady-state mean speed (linear.x)
   over the trailing ``steady_window``, once that window is filled;
 - /saw/tracking/status          diagnostic_msgs/DiagnosticArray: every frame, the frame's status
-  (ok / front lost / back lost / both lost / ambiguous) and running counts.
+  (ok / front lost / back lost / both lost / ambiguous) and running counts;
+- /saw/tracking/markers         visualization_msgs/MarkerArray: every frame, the measured marker
+  centres and the tracked pose, drawn over the simulator's /saw/markers (saw_ros.ros.markers).
 
 Pose and twists are published only for 'ok' frames: nothing is made up. The math lives in
 ``saw_ros.vision.tracker``.
@@ -33,18 +35,20 @@ import numpy as np
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from saw_ros.core.params import spec_entries, spec_meta
-from saw_ros.interface import topics
+from saw_ros.interface import scene_markers, topics
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
+from saw_ros.ros import markers
 from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, yaml_text
-from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, STREAM_QOS, with_depth
+from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, profile, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 from saw_ros.vision import compressed
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from visualization_msgs.msg import MarkerArray
 
 PENDING = 30            # images kept while waiting for the first CameraInfo
 
@@ -143,6 +147,8 @@ class VisionNode(Node):
         self._pub_smooth = pub(TwistStamped, topics.TRACKING_TWIST_SMOOTHED, STREAM_QOS)
         self._pub_steady = pub(TwistStamped, topics.TRACKING_STEADY_SPEED, STREAM_QOS)
         self._pub_status = pub(DiagnosticArray, topics.TRACKING_STATUS, STREAM_QOS)
+        self._pub_markers = pub(MarkerArray, topics.TRACKING_MARKERS,
+                                profile(topics.topic(topics.TRACKING_MARKERS).qos))
         # Raw: the 2.7 MB pixels are read in place (cdr.ImageView) instead of being converted
         # to a Python array and copied again.
         image_qos = with_depth(IMAGE_QOS, IMAGE_PUBLISHER_DEPTH)
@@ -245,6 +251,10 @@ class VisionNode(Node):
             if res.steady_speed is not None:
                 self._pub_steady.publish(conv.twist_msg(res.steady_speed, 0.0, 0.0, t_ns))
         self._pub_status.publish(self._status(res, t_ns))
+        self._pub_markers.publish(markers.marker_array_cdr(scene_markers.tracking(
+            *((None if p is None else (p.real, p.imag, 0.0)) for p in (res.front, res.back)),
+            (res.position.real, res.position.imag, res.pitch)
+            if res.status is TrackStatus.OK else None), t_ns))
 
     def _status(self, res, t_ns: int) -> DiagnosticArray:
         c = self.tracker.counters
