@@ -38,6 +38,12 @@ class DaskPool:
                             '(pip install -r requirements.txt)') from None
         self.address = address
         try:
+            # Checked first: a Client given a malformed address hangs for seconds when collected.
+            distributed.comm.get_address_host_port(address)
+        except ValueError as exc:
+            raise PoolError(f'{address!r} is not a Dask scheduler address such as '
+                            f'tcp://host:8786 ({_one_line(exc)})') from None
+        try:
             self.client = distributed.Client(address, timeout=timeout, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
             raise PoolError(f'cannot reach the Dask scheduler at {address} within {timeout:g} s '

@@ -23,7 +23,7 @@ from saw_ros.core.pool import Pool, PoolError
 def add_pool_arguments(parser, workers: int = 1) -> None:
     """Add --workers, --scheduler and --scheduler-timeout to ``parser`` (one group)."""
     g = parser.add_argument_group('where the sweeps run')
-    g.add_argument('--workers', type=int, default=workers,
+    g.add_argument('--workers', type=int, default=workers, metavar='N',
                    help=f'local processes ({workers}); the batch is cut into that many parts')
     g.add_argument('--scheduler', default=None, metavar='ADDRESS',
                    help='run the batches on the Dask cluster of this scheduler, e.g. '

@@ -104,3 +104,11 @@ def test_a_scheduler_without_workers_is_one_line():
     with distributed.LocalCluster(n_workers=0, processes=True, dashboard_address=':0') as cluster:
         with pytest.raises(PoolError, match='has no worker'):
             DaskPool(cluster.scheduler_address, timeout=1.0)
+
+
+@pytest.mark.parametrize('address', ['localhost', 'http://127.0.0.1:8786', 'tcp://127.0.0.1'])
+def test_a_malformed_address_is_one_line_at_once(address):
+    start = time.perf_counter()
+    with pytest.raises(PoolError, match='is not a Dask scheduler address such as tcp://host:8786'):
+        pool_from(address)
+    assert time.perf_counter() - start < 1
