@@ -5,14 +5,18 @@ The highest real-time factor at which simulator, camera, vision, comparison and 
 processes, ``saw_ros.graph.pipeline.run_pipeline``) lose no message.
 
 Each rung of a ladder of real-time factors runs the real graph for ``DURATION`` s of simulated
-time (the default scenario, video on, the recorder on ``pipeline.RECORDED_TOPICS``: every
-topic but the raw frames, as the main job runs it) and checks the artefacts.
+time (the default scenario) and checks the artefacts. Two ladders: the recorder on every topic
+but the camera's images (``pipeline_max_realtime_factor``), and on everything the main job
+records, the camera's JPEG stream included (``pipeline.RECORDED_TOPICS``:
+``pipeline_images_max_realtime_factor``).
 A rung is sustained when ALL of these hold (N = duration / dt steps, F = 60 x duration frames):
 
 - every process exited 0 and the simulator never reported falling behind real time;
 - the bag holds, for each 1 kHz topic (/clock and the five /saw streams), exactly N messages
   stamped 1..N ms, consecutive (no gap, no repeat);
-- the bag holds F images and F camera infos, frame k (k = 1..F) stamped k/60 s, in order;
+- the bag holds F camera infos (and, when recorded, F compressed images), frame k (k = 1..F)
+  stamped k/60 s, in order; F tracking marker arrays, and one /saw/markers array per 1/60 s
+  slot of the steps' stamps;
 - /saw/tracking/status holds F messages (one per frame), the last one counts F frames (the
   tracker got every image) and /saw/tracking/pose holds exactly one per 'ok' frame (that
   status's ok_frames), each stamped as a frame;
@@ -28,7 +32,8 @@ A rung is sustained when ALL of these hold (N = duration / dt steps, F = 60 x du
 starts at 1.0 and climbs until a rung fails; when 1.0 fails it steps down instead; 0 if none),
 ``pipeline_lost_messages`` the messages missing at that factor (0 by definition, or at the lowest
 rung tried when none is sustained), ``pipeline_cpu_share`` each node's CPU (fraction of one core)
-while the simulator stepped at real-time factor 1.0. Two shared cores: figures are noisy.
+while the simulator stepped at real-time factor 1.0; the same with ``pipeline_images_`` for the
+ladder that records the images. Two shared cores: figures are noisy.
 Each rung's folder (node logs, comparison.json; the bag and video only when the rung failed) is
 kept in ``log_dir('pipeline')/rtf_<factor>/``; a graph that does not finish in time, or
 artefacts that cannot be read, make a failed rung, never a crashed bench.
@@ -47,7 +52,10 @@ from typing import Dict, List, Optional
 
 from saw_ros.interface import topics
 
-KEYS = ('pipeline_max_realtime_factor', 'pipeline_lost_messages', 'pipeline_cpu_share')
+KEYS = ('pipeline_max_realtime_factor', 'pipeline_lost_messages', 'pipeline_cpu_share',
+        'pipeline_images_max_realtime_factor', 'pipeline_images_lost_messages',
+        'pipeline_images_cpu_share')
+IMAGE_TOPICS = (topics.IMAGE, topics.IMAGE_COMPRESSED)
 DURATION = 6.0          # s of simulated time per rung (steady state is reached near 2-3 s)
 QUICK_DURATION = 5.0
 UP = (1.0, 1.25, 1.5, 2.0)
@@ -132,6 +140,9 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     frames = int(round(duration * FPS))
     step_ns = int(round(dt * 1e9))
     frame_stamps = [int(round(k * 1e9 / FPS)) for k in range(1, frames + 1)]
+    # /saw/markers: the first step of every 1/60 s slot of stamps (saw_ros.ros.markers).
+    slots = sorted({int(k * step_ns * FPS // 1e9 + 1e-9): k * step_ns
+                    for k in range(n, 0, -1)}.values())
     problems: List[str] = []
     problems_note = ''
     lost: Dict[str, int] = {}
@@ -140,9 +151,13 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     ok_frames = None
     vision_frames = 0
     reader = BagReader(str(run.bag_dir))
-    tracking = (topics.TRACKING_STATUS, topics.TRACKING_POSE)
-    for m in reader.messages(streams + (topics.IMAGE, topics.CAMERA_INFO) + tracking):
-        stamps.setdefault(m.topic, []).append(stamp_ns(m.data))
+    wanted = streams + IMAGE_TOPICS + (topics.CAMERA_INFO, topics.MARKERS, topics.TRACKING_MARKERS,
+                                       topics.TRACKING_STATUS, topics.TRACKING_POSE)
+    arrays = (topics.MARKERS, topics.TRACKING_MARKERS)
+    for m in reader.messages(wanted):
+        # A MarkerArray's first header (its DELETEALL's) comes after the array's length.
+        stamps.setdefault(m.topic, []).append(
+            stamp_ns(m.data[:4] + m.data[8:]) if m.topic in arrays else stamp_ns(m.data))
         log_times.setdefault(m.topic, []).append(m.log_time)
     for _m, msg in reader.decoded_messages([topics.TRACKING_STATUS]):
         values = {kv.key: kv.value for kv in msg.status[0].values}
@@ -152,12 +167,14 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
         lost[topic] = _missing(stamps.get(topic, []),
                                [k * step_ns for k in range(1, n + 1)])
     recorded = set(reader.topics())
-    for topic in (topics.IMAGE, topics.CAMERA_INFO, topics.TRACKING_STATUS):
-        if topic == topics.IMAGE and topic not in recorded:
-            problems_note = "images not recorded (the camera info and the tracker's status " \
-                            'count the frames)'
-            continue
-        lost[topic] = _missing(stamps.get(topic, []), frame_stamps)
+    if not recorded & set(IMAGE_TOPICS):
+        problems_note = "images not recorded (the camera info and the tracker's status count " \
+                        'the frames)'
+    for topic in IMAGE_TOPICS + (topics.CAMERA_INFO, topics.TRACKING_STATUS,
+                                 topics.TRACKING_MARKERS):
+        if topic in recorded or topic not in IMAGE_TOPICS:
+            lost[topic] = _missing(stamps.get(topic, []), frame_stamps)
+    lost[topics.MARKERS] = _missing(stamps.get(topics.MARKERS, []), slots)
     pose = stamps.get(topics.TRACKING_POSE, [])
     if ok_frames is None:
         problems.append('no tracking status in the bag')
@@ -234,19 +251,18 @@ def measure(rtf: float, duration: float, work: Path, record_topics: Optional[Lis
     return result
 
 
-def run(quick: bool = False) -> dict:
-    from saw_ros.bench import log_dir
-    duration = QUICK_DURATION if quick else DURATION
-    best, lost_best, cpu_at_1, lowest = 0.0, None, None, None
-    work = log_dir('pipeline')
+def ladder(duration: float, work: Path, record_topics: List[str]) -> tuple:
+    """Return (highest rtf sustained, messages lost there, CPU shares at 1.0) of one ladder."""
+    best, lost_best, lowest = 0.0, None, None
+    work.mkdir(parents=True, exist_ok=True)
 
     def rung(rtf):
         shutil.rmtree(work / f'rtf_{rtf:g}', ignore_errors=True)   # a reused --logs folder
-        result = measure(rtf, duration, work)
-        if result['sustained']:     # keep the logs; the bag and video only of failures
+        result = measure(rtf, duration, work, record_topics)
+        if result['sustained']:     # keep the logs; the bag only of failures
             shutil.rmtree(work / f'rtf_{rtf:g}' / 'bag', ignore_errors=True)
-            (work / f'rtf_{rtf:g}' / 'camera.mp4').unlink(missing_ok=True)
-        print(f'bench pipeline: {json.dumps(result)}', file=sys.stderr, flush=True)
+        print(f'bench pipeline ({work.name}): {json.dumps(result)}', file=sys.stderr,
+              flush=True)
         return result
     first = rung(1.0)
     cpu_at_1 = first.get('cpu_share')
@@ -266,8 +282,20 @@ def run(quick: bool = False) -> dict:
                 break
         if best == 0.0:
             lost_best = lowest.get('lost')
-    return {'pipeline_max_realtime_factor': best, 'pipeline_lost_messages': lost_best,
-            'pipeline_cpu_share': cpu_at_1}
+    return best, lost_best, cpu_at_1
+
+
+def run(quick: bool = False) -> dict:
+    from saw_ros.bench import log_dir
+    from saw_ros.graph.pipeline import RECORDED_TOPICS
+    duration = QUICK_DURATION if quick else DURATION
+    work = log_dir('pipeline')
+    no_images = [t for t in RECORDED_TOPICS if t not in IMAGE_TOPICS]
+    best, lost, cpu = ladder(duration, work / 'no_images', no_images)
+    images_best, images_lost, images_cpu = ladder(duration, work / 'images', RECORDED_TOPICS)
+    return {'pipeline_max_realtime_factor': best, 'pipeline_lost_messages': lost,
+            'pipeline_cpu_share': cpu, 'pipeline_images_max_realtime_factor': images_best,
+            'pipeline_images_lost_messages': images_lost, 'pipeline_images_cpu_share': images_cpu}
 
 
 def main(argv: List[str]) -> int:
