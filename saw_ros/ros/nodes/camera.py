@@ -10,6 +10,11 @@ no frame is ever skipped, however late. Publishes /saw/camera/image_raw (sensor_
 /saw/camera/camera_info (sensor_msgs/CameraInfo: K, P of the rendering, no distortion), all with
 the frame's stamp. Optionally writes the frames to an .mp4 (``video_path``).
 
+Like image_transport's publishers, a stream goes out only while someone subscribes to it: a
+1280x720 frame costs about 12 ms to publish raw and 7-13 ms to encode as JPEG on this 2-core
+machine, which the camera spends only for a reader. (Frames are still rendered, counted and put
+in the video; CameraInfo always goes out.)
+
 The drawing lives in ``saw_ros.vision.frames``; docs/vision.md lists topics and parameters.
 """
 from __future__ import annotations
@@ -334,9 +339,10 @@ class CameraNode(Node):
             conv.time_msg(t_ns, info.header.stamp)
             self._pub_info.publish(info)      # first: a reader has the new K for the image
             frame = np.ascontiguousarray(frame)
-            if self._pub_image is not None:
+            if self._pub_image is not None and self._pub_image.get_subscription_count():
                 self._pub_image.publish(self._image_cdr(frame, t_ns))
-            if self._pub_compressed is not None:
+            if self._pub_compressed is not None and \
+                    self._pub_compressed.get_subscription_count():
                 # Here, in the output thread: OpenCV encodes without the GIL.
                 t = time.perf_counter()
                 data = compressed.encode_jpeg(frame, self.jpeg_quality)
