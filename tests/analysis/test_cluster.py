@@ -112,3 +112,13 @@ def test_a_malformed_address_is_one_line_at_once(address):
     with pytest.raises(PoolError, match='is not a Dask scheduler address such as tcp://host:8786'):
         pool_from(address)
     assert time.perf_counter() - start < 1
+
+
+@pytest.mark.slow
+def test_campaign_on_the_cluster_equals_the_local_pool(scheduler):
+    from saw_ros.analysis.campaign import run_campaign
+    local = run_campaign((20.0,), (6.0,), pool=LocalPool(2))
+    with DaskPool(scheduler) as pool:
+        remote = run_campaign((20.0,), (6.0,), pool=pool)
+    numbers = [np.array(list(vars(r).values()), float) for r in local + remote]
+    assert np.array_equal(numbers[0], numbers[1], equal_nan=True)
