@@ -20,6 +20,7 @@ import numpy as np
 
 from saw_ros.analysis.compare import find_reference, load_reference, reference_error, RunComparator
 from saw_ros.core import Scenario, simulate
+from saw_ros.core.metrics import run_turns, TURN
 from saw_ros.core.pool import LocalPool, Pool
 
 PAPER_SLOPES_DEG = (-20.0, -10.0, 0.0, 10.0, 20.0)
@@ -56,9 +57,7 @@ def _track_condition(job) -> Tuple[np.ndarray, np.ndarray, int]:
     from saw_ros.vision.camera import CameraModel
     from saw_ros.vision.frames import Renderer, RenderOptions, pose_interpolator
     from saw_ros.vision.tracker import Tracker, TrackerConfig
-    scenario, t, q, fps, camera_kw = job
-    f = scenario.frequency
-    phase = (2.0 * math.pi * f * t) % (2.0 * math.pi)
+    scenario, t, q, phase, fps, camera_kw = job
     pose_at = pose_interpolator(t, q[:, 0], q[:, 1], q[:, 2], phase)
     camera = CameraModel(slope=scenario.conditions.slope, **camera_kw)
     renderer = Renderer(scenario.robot, scenario.conditions.gap, camera, RenderOptions())
@@ -93,8 +92,10 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
     trajectory = simulate(scenarios, duration, pool=pool)
     if progress is not None:
         progress(0)
-    jobs = [(s, trajectory.t, trajectory.q[:, i], fps, dict(camera or {}))
-            for i, s in enumerate(scenarios)]
+    # The helix's own angle: a motor turns it slower than its no-load frequency, and unevenly.
+    turns = [run_turns(trajectory, i) for i in range(len(scenarios))]
+    jobs = [(s, trajectory.t, trajectory.q[:, i], np.remainder(turns[i], TURN), fps,
+             dict(camera or {})) for i, s in enumerate(scenarios)]
     tracked = []
     for part in pool.map(_track_condition, jobs):
         tracked.append(part)
@@ -107,10 +108,13 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
         q = trajectory.q[:, i]
         for row in zip(trajectory.t, q[:, 0]):
             comp.add_truth(*row)
+        if s.motor.voltage > 0.0:
+            for row in zip(trajectory.t, turns[i]):
+                comp.add_helix(*row)
         for row in zip(times, xs):
             comp.add_tracked(*row)
         r = comp.result()
-        result = ConditionResult(slope, volts, s.frequency, r.v_theory, r.v_sim, r.v_tracked,
+        result = ConditionResult(slope, volts, r.frequency, r.v_theory, r.v_sim, r.v_tracked,
                                  r.ar_sim, r.ar_tracked, r.relative_error, r.steady_from,
                                  len(times), ok)
         point = find_reference(reference, slope, volts)

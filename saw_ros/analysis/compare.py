@@ -10,6 +10,11 @@ still sees the same signal, where differences across a gap would average the ~25
 keep the CCI above 2 %. Both mean speeds are then measured over the same
 window, from the steady-state start over a whole number of wave cycles (the ripple cancels), the
 tracked one by interpolating its 60 Hz positions at the window's ends.
+
+When a motor turns the helix (docs/motor.md) its speed is an outcome and ripples within a
+cycle: given the helix's angle (``add_helix``: the simulator's /saw/joint_states, or a
+trajectory's recorded speed), a cycle is one helix turn, and v_theory takes the mean helix
+frequency over the window (core.metrics).
 """
 from __future__ import annotations
 
@@ -22,7 +27,7 @@ from typing import List, Optional
 import numpy as np
 
 from saw_ros.core.kinematics import v_theory
-from saw_ros.core.metrics import STEADY_CCI, steady_state_start
+from saw_ros.core.metrics import STEADY_CCI, steady_state_start, TURN
 from saw_ros.core.params import RobotParams
 
 
@@ -98,10 +103,28 @@ class RunComparator:
         self.min_cycles = min_cycles
         self.truth = _GrowingColumns(2)
         self.tracked = _GrowingColumns(2)
+        self.helix = _GrowingColumns(2)          # t, unwrapped helix angle (rad)
 
     def reset(self) -> None:
         self.truth.clear()
         self.tracked.clear()
+        self.helix.clear()
+
+    def add_helix(self, t: float, angle: float) -> None:
+        """
+        Take the helix angle (rad) at simulated time ``t``: wrapped to [0, 2 pi) or not.
+
+        It is unwrapped here (the helix turns less than half a turn between two samples).
+        """
+        if self.helix.size:
+            last_t, last = self.helix.column(0)[-1], self.helix.column(1)[-1]
+            if t <= last_t:
+                if t < last_t:
+                    self.helix.clear()             # a reset of the simulation
+                    self.helix.append(t, angle)
+                return
+            angle = last + (angle - last + math.pi) % TURN - math.pi
+        self.helix.append(t, angle)
 
     def add_truth(self, t: float, x: float) -> None:
         if self.truth.size and t <= self.truth.column(0)[-1]:
@@ -127,17 +150,41 @@ class RunComparator:
         if not (f > 0) or n_truth < 10:
             return Comparison('waiting for data', frequency=f, **counts)
         t, x = self.truth.column(0), self.truth.column(1)
-        start = steady_state_start(*velocity_on_grid(t, x), f, self.threshold, self.min_cycles)
+        grid, v = velocity_on_grid(t, x)
+        turns = None
+        if self.helix.size >= 2:
+            ht, angle = self.helix.column(0), self.helix.column(1)
+            # (a subscriber may have started following the helix after the pose)
+            followed = grid >= ht[0]
+            grid, v = grid[followed], v[followed]
+            if len(grid) < 10:
+                return Comparison('not steady yet', **counts)
+            half = self.helix.size // 2
+            f = float((angle[-1] - angle[half]) / (TURN * (ht[-1] - ht[half])))
+            turns = np.interp(grid, ht, angle)
+            if not (f > 0):
+                return Comparison('not steady yet', frequency=f, **counts)
+        start = steady_state_start(grid, v, f, self.threshold, self.min_cycles, turns)
         vth = v_theory(self.robot, f)
         if start is None:
             return Comparison('not steady yet', frequency=f, v_theory=vth, **counts)
         tt, xt = self.tracked.column(0), self.tracked.column(1)
         end = min(t[-1], tt[-1]) if n_tracked >= 2 else start
-        cycles = math.floor((end - start) * f + 1e-9)
+        if turns is None:
+            cycles = math.floor((end - start) * f + 1e-9)
+        else:
+            first, last = np.interp([start, end], ht, angle)
+            cycles = math.floor((last - first) / TURN + 1e-9)
         if cycles < 1 or tt[0] > start:
             return Comparison('not steady yet', frequency=f, v_theory=vth, steady_from=start,
                               **counts)
-        end = start + cycles / f
+        if turns is None:
+            end = start + cycles / f
+        else:
+            # Whole helix turns, at the helix's mean frequency over them.
+            end = float(np.interp(first + cycles * TURN, angle, ht))
+            f = cycles / (end - start)
+            vth = v_theory(self.robot, f)
         v_sim = float(np.diff(np.interp([start, end], t, x))[0] / (end - start))
         v_tracked = float(np.diff(np.interp([start, end], tt, xt))[0] / (end - start))
         ar_sim, ar_tracked = v_sim / vth, v_tracked / vth

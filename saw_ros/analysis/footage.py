@@ -37,6 +37,7 @@ from saw_ros.analysis.campaign import ConditionResult, duration_for, summarise, 
 from saw_ros.analysis.compare import RunComparator
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.kinematics import v_theory
+from saw_ros.core.metrics import run_frequency, run_turns
 
 MANIFEST_COLUMNS = ('video', 'slope_deg', 'voltage_V', 'frequency_hz', 'px_per_m',
                     'marker_spacing_m', 'notes')
@@ -187,10 +188,10 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
 
 def simulate_conditions(scenarios: Sequence[Scenario]) -> List[tuple]:
     """
-    (v_sim, ar_sim, steady_from) of each scenario, all simulated as one batch.
+    (v_sim, ar_sim, steady_from, frequency) of each scenario, all simulated as one batch.
 
     The speed is the campaign's: whole cycles after steady state (RunComparator, truth against
-    itself).
+    itself). ``frequency``: the helix's, which a motor reaches under load (``run_frequency``).
     """
     duration = max(duration_for(s.frequency) for s in scenarios)
     trajectory = simulate(list(scenarios), duration)
@@ -200,9 +201,12 @@ def simulate_conditions(scenarios: Sequence[Scenario]) -> List[tuple]:
         for t, x in zip(trajectory.t, trajectory.q[:, i, 0]):
             comp.add_truth(t, x)
             comp.add_tracked(t, x)
+        if s.motor.voltage > 0.0:
+            for row in zip(trajectory.t, run_turns(trajectory, i)):
+                comp.add_helix(*row)
         r = comp.result()
-        out.append((r.v_sim, r.ar_sim, r.steady_from) if r.steady else
-                   (float('nan'), float('nan'), float('nan')))
+        out.append((r.v_sim, r.ar_sim, r.steady_from, r.frequency) if r.steady else
+                   (float('nan'), float('nan'), float('nan'), run_frequency(trajectory, i)))
     return out
 
 
@@ -222,14 +226,16 @@ def run_footage(runs: Sequence[FootageRun], base: Optional[Scenario] = None, con
     if progress is not None:
         progress(0)
     out = []
-    for run, s, (v_sim, ar_sim, steady_from) in zip(runs, scenarios, simulated):
-        m = measure(run, s.frequency, config)
-        vth = v_theory(s.robot, s.frequency)
+    for run, s, (v_sim, ar_sim, steady_from, frequency) in zip(runs, scenarios, simulated):
+        # The real helix's speed under load is not measured: take the simulated one (its whole
+        # cycles, and the v_theory the measured and simulated AR share).
+        m = measure(run, frequency, config)
+        vth = v_theory(s.robot, frequency)
         ar = m.speed / vth
         voltage = run.voltage if run.voltage is not None else \
             s.motor.dead_voltage + s.frequency / s.motor.hz_per_volt if s.motor.hz_per_volt > 0 \
             else float('nan')
-        cond = ConditionResult(run.slope_deg, voltage, s.frequency, vth, v_sim, m.speed, ar_sim,
+        cond = ConditionResult(run.slope_deg, voltage, frequency, vth, v_sim, m.speed, ar_sim,
                                ar, abs(ar - ar_sim) / abs(ar_sim), steady_from, m.frames,
                                m.frames_ok)
         out.append(FootageResult(run, cond, m))
@@ -365,6 +371,8 @@ def make_clip(scenario: Scenario, path, start: float = 1.2, duration: float = 2.
     from saw_ros.vision.synthetic import simulate_run
     from saw_ros.vision.video import VideoWriter
     run = simulate_run(scenario, start + duration + 0.1)
+    # (a motor turns the helix below its no-load frequency: the clip's cycles are the helix's)
+    frequency = run_frequency(run.trajectory)
     n = int(round(duration * fps))
     times = start + np.arange(n) / fps
     xs = np.interp(times, run.t, run.x)
@@ -379,9 +387,9 @@ def make_clip(scenario: Scenario, path, start: float = 1.2, duration: float = 2.
     with VideoWriter(path, fps, (camera.width, camera.height)) as writer:
         for t in times:
             writer.write(renderer.render(run.pose_at(t), (), run.pose_at, t))
-    speed, window = clip_speed(times - start, xs, scenario.frequency)
+    speed, window = clip_speed(times - start, xs, frequency)
     return {'t': times - start, 'x': xs, 'speed': speed, 'window': window,
-            'px_per_m': camera.scale, 'frequency': scenario.frequency,
+            'px_per_m': camera.scale, 'frequency': frequency,
             'center_x': camera.center_x, 'center_y': camera.center_y}
 
 

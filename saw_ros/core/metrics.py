@@ -5,10 +5,15 @@ Pure functions of sampled signals, so that the simulator's 1 kHz ground truth an
 60 fps estimates go through the same code.
 
 CCI(t) = |v(t) - v(t + T)| / |v_avg|, T = 1/f: how much a velocity differs from itself one wave
-cycle later (the paper's "cyclic convergence index"). For the forward velocity v_avg is its
-steady mean. The normal and pitch velocities average to about zero, which would make the index
-meaningless, so they are scaled by their RMS over the steady part instead (our choice; the paper
-does not say).
+cycle later (the paper's "cyclic convergence index"). When a motor turns the helix its speed
+ripples within a cycle, and "one cycle later" is one helix turn later: given the helix's turns
+(its unwrapped angle per sample, ``helix_turns``), the CCI, the steady state and the averaging
+window follow the helix instead of the clock. (At 4 V, climbing, the clock's T = 1 / mean f lands
+a few ms off the next turn, and the ~25 Hz ripple then keeps the CCI near 10 %.)
+
+For the forward velocity v_avg is its steady mean. The normal and pitch velocities average to
+about zero, which would make the index meaningless, so they are scaled by their RMS over the
+steady part instead (our choice; the paper does not say).
 """
 from __future__ import annotations
 
@@ -21,14 +26,16 @@ import numpy as np
 from saw_ros.core.kinematics import v_theory
 
 STEADY_CCI = 0.02   # the paper's first convergence threshold (2 %)
+TURN = 2.0 * math.pi
 
 
-def cci(t, v, frequency: float, scale: Optional[float] = None):
+def cci(t, v, frequency: float, scale: Optional[float] = None, turns=None):
     """
     Return (times, CCI) for every sample with a full cycle after it.
 
     ``scale`` defaults to |mean v| over the last two cycles (the steady part of a run that
-    converged).
+    converged). ``turns``: the helix angle (rad, unwrapped) per sample; a cycle is then one turn
+    of it, else 1 / ``frequency``.
 
     v(t + T) is interpolated in time, so samples may be irregular or missing (a subscriber that
     lost messages, a tracker that lost a frame).
@@ -38,12 +45,19 @@ def cci(t, v, frequency: float, scale: Optional[float] = None):
     if frequency <= 0:
         raise ValueError('CCI needs a wave frequency above 0')
     period = 1.0 / frequency
-    usable = t <= t[-1] - period + 1e-9 if len(t) else t.astype(bool)
+    if turns is None:
+        usable = t <= t[-1] - period + 1e-9 if len(t) else t.astype(bool)
+    else:
+        turns = np.asarray(turns, float)
+        usable = turns <= turns[-1] - TURN + 1e-9 if len(t) else t.astype(bool)
     if not usable.any():
         return t[:0], v[:0]
     if scale is None:
         scale = abs(float(np.mean(v[t >= t[-1] - 2 * period])))
-    later = np.interp(t[usable] + period, t, v)
+    if turns is None:
+        later = np.interp(t[usable] + period, t, v)
+    else:
+        later = np.interp(np.interp(turns[usable] + TURN, turns, t), t, v)
     return t[usable], np.abs(later - v[usable]) / max(scale, 1e-12)
 
 
@@ -53,7 +67,7 @@ def rms_scale(v, t, frequency: float) -> float:
     return float(np.sqrt(np.mean(tail ** 2)))
 
 
-def velocity_cci(t, q, frequency: float):
+def velocity_cci(t, q, frequency: float, turns=None):
     """
     Return (times, {'vx', 'vy', 'w': CCI}) of the velocities of q (n, 6) = x, y, theta, vx, vy, w.
 
@@ -62,7 +76,7 @@ def velocity_cci(t, q, frequency: float):
     indices = {}
     for name, col in (('vx', 3), ('vy', 4), ('w', 5)):
         scale = None if col == 3 else rms_scale(q[:, col], t, frequency)
-        tc, indices[name] = cci(t, q[:, col], frequency, scale)
+        tc, indices[name] = cci(t, q[:, col], frequency, scale, turns)
     return tc, indices
 
 
@@ -81,29 +95,36 @@ def settling_time(t, index, threshold: float) -> Optional[float]:
 
 
 def steady_state_start(t, v, frequency: float, threshold: float = STEADY_CCI,
-                       min_cycles: float = 1.0) -> Optional[float]:
+                       min_cycles: float = 1.0, turns=None) -> Optional[float]:
     """
     Start of steady state.
 
     CCI of the forward velocity stays under ``threshold`` from there on, with at least
-    ``min_cycles`` cycles of evidence after it. None while not steady.
+    ``min_cycles`` cycles of evidence after it. None while not steady. ``turns``: as ``cci``.
     """
-    tc, index = cci(t, v, frequency)
+    tc, index = cci(t, v, frequency, turns=turns)
     start = settling_time(tc, index, threshold)
     if start is None or len(tc) == 0 or tc[-1] - start < min_cycles / frequency - 1e-9:
         return None
     return start
 
 
-def cycle_window(t, start: float, frequency: float) -> Tuple[int, int]:
+def cycle_window(t, start: float, frequency: float, turns=None) -> Tuple[int, int]:
     """
     Return the first and last sample (i0, i1) of the whole wave cycles from ``start``.
 
-    (to the end of the record, or all of it when it is shorter than a cycle).
+    (to the end of the record, or all of it when it is shorter than a cycle). ``turns``: the
+    helix angle per sample, whose whole turns are then the cycles.
     """
     t = np.asarray(t, float)
     span = t[-1] - start
-    if frequency > 0 and span * frequency >= 1.0:
+    if turns is not None:
+        turns = np.asarray(turns, float)
+        first = float(np.interp(start, t, turns))
+        whole = math.floor((turns[-1] - first) / TURN + 1e-9)
+        if whole >= 1:
+            span = float(np.interp(first + whole * TURN, turns, t)) - start
+    elif frequency > 0 and span * frequency >= 1.0:
         span = math.floor(span * frequency + 1e-9) / frequency
     i0 = int(np.searchsorted(t, start - 1e-12))
     i1 = int(np.searchsorted(t, start + span - 1e-9))
@@ -121,14 +142,21 @@ def mean_velocity(t, x, start: float, frequency: float) -> float:
     return float((x[i1] - x[i0]) / (t[i1] - t[i0]))
 
 
-def helix_frequency(omega, i0: int, i1: int) -> float:
+def helix_turns(t, omega):
     """
-    Mean helix frequency (Hz) between samples i0 and i1 of the helix speed ``omega`` (rad/s).
+    Return the helix angle (rad, unwrapped, 0 at the first sample) from its speed (rad/s).
 
-    Sample k holds the speed of the step that ended there, so samples i0 + 1 .. i1 turned the
-    helix from sample i0 to i1.
+    Sample k holds the speed of the step that ended there (``Trajectory.omega``), so the angle
+    is exact when every step is recorded.
     """
-    return float(np.mean(np.asarray(omega, float)[i0 + 1:i1 + 1])) / (2.0 * math.pi)
+    t = np.asarray(t, float)
+    omega = np.asarray(omega, float)
+    return np.concatenate([[0.0], np.cumsum(omega[1:] * np.diff(t))])
+
+
+def helix_frequency(t, turns, i0: int, i1: int) -> float:
+    """Mean helix frequency (Hz) between samples i0 and i1 of the helix angle ``turns``."""
+    return float((turns[i1] - turns[i0]) / (TURN * (t[i1] - t[i0])))
 
 
 @dataclass
@@ -154,28 +182,58 @@ def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0,
 
     ``omega`` (n,): the helix speed (rad/s, ``Trajectory.omega``) of a run a motor drove, whose
     frequency is an outcome: ``frequency`` (the no-load one) is then ignored, the cycles are
-    those of the mean helix frequency over the second half, and v_theory and AR use the mean
-    helix frequency over the averaging window (AR = v / (wavelength f_actual) in the paper's
-    terms), which ``RunMetrics.frequency`` reports.
+    helix turns (module docstring), and v_theory and AR use the mean helix frequency over the
+    averaging window (AR = v / (wavelength f_actual) in the paper's terms), which
+    ``RunMetrics.frequency`` reports.
     """
     t = np.asarray(t, float)
     q = np.asarray(q, float)
+    turns = None
     if omega is not None:
-        frequency = helix_frequency(omega, len(t) // 2 - 1, len(t) - 1)
+        turns = helix_turns(t, omega)
+        frequency = helix_frequency(t, turns, len(t) // 2 - 1, len(t) - 1)
     if frequency <= 0:
         v = mean_velocity(t, q[:, 0], t[0], 0.0)
         return RunMetrics(frequency, v_theory(robot, frequency), v, float('nan'), None, None,
                           None)
-    start = steady_state_start(t, q[:, 3], frequency, min_cycles=min_cycles)
+    start = steady_state_start(t, q[:, 3], frequency, min_cycles=min_cycles, turns=turns)
     from_t = start if start is not None else t[len(t) // 2]
-    v = mean_velocity(t, q[:, 0], from_t, frequency)
-    if omega is not None:
-        frequency = helix_frequency(omega, *cycle_window(t, from_t, frequency))
+    i0, i1 = cycle_window(t, from_t, frequency, turns)
+    v = float((q[i1, 0] - q[i0, 0]) / (t[i1] - t[i0]))
+    if turns is not None:
+        frequency = helix_frequency(t, turns, i0, i1)
     vth = v_theory(robot, frequency)
-    tc, indices = velocity_cci(t, q, frequency)
+    tc, indices = velocity_cci(t, q, frequency, turns)
     settled = {}
     for threshold in (0.02, 0.002):
         times = [settling_time(tc, index, threshold) for index in indices.values()]
         settled[threshold] = None if None in times else max(times)
     ar = v / vth if vth > 0 else float('nan')
     return RunMetrics(frequency, vth, v, ar, start, settled[0.02], settled[0.002])
+
+
+def run_frequency(trajectory, i: int = 0) -> float:
+    """
+    Return the helix frequency (Hz) scenario ``i`` of a ``Trajectory`` ran at.
+
+    conditions.frequency, or, where a motor drove the helix, its mean over the second half of
+    the record (past the spin-up): what v_theory and AR of a motor run are taken against.
+    """
+    scenario = trajectory.scenarios[i]
+    if scenario.motor.voltage <= 0.0 or trajectory.omega is None:
+        return scenario.frequency
+    n = len(trajectory.t)
+    return helix_frequency(trajectory.t, run_turns(trajectory, i), n // 2 - 1, n - 1)
+
+
+def run_turns(trajectory, i: int = 0):
+    """Return the helix angle (rad, unwrapped, 0 at start) of scenario ``i`` per sample."""
+    return helix_turns(trajectory.t, trajectory.omega[:, i])
+
+
+def analyse_run(trajectory, i: int = 0, min_cycles: float = 1.0) -> RunMetrics:
+    """Return the metrics of scenario ``i`` of a ``Trajectory``, against its helix's speed."""
+    scenario = trajectory.scenarios[i]
+    motor = scenario.motor.voltage > 0.0 and trajectory.omega is not None
+    return analyse(trajectory.t, trajectory.q[:, i], scenario.robot, scenario.frequency,
+                   min_cycles, trajectory.omega[:, i] if motor else None)

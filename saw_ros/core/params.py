@@ -311,7 +311,8 @@ class Scenario:
         motor.voltage when above 0, else conditions.frequency.
         """
         if self.motor.voltage > 0.0:
-            return f'motor.voltage = {self.motor.voltage:g} V; conditions.frequency ignored'
+            return (f'motor.voltage = {self.motor.voltage:g} V at no load, slower under load; '
+                    f'conditions.frequency ignored')
         return 'conditions.frequency'
 
     # -- flat name access, shared by the YAML files, the node parameters and the CLI ----------

@@ -34,6 +34,7 @@ TWIST = '/saw/twist'
 CONTACTS = '/saw/contacts'
 CONTACT_WRENCH = '/saw/contact_wrench'
 JOINT_STATES = '/saw/joint_states'
+MOTOR = '/saw/motor'
 IMAGE = '/saw/camera/image_raw'
 IMAGE_COMPRESSED = '/saw/camera/image_raw/compressed'
 CAMERA_INFO = '/saw/camera/camera_info'
@@ -62,7 +63,9 @@ TOPICS: Tuple[Topic, ...] = (
     Topic(CONTACT_WRENCH, 'geometry_msgs/msg/WrenchStamped', 'stream', 'simulator', '1000 Hz',
           'base_link', 'net contact force and moment about the COM'),
     Topic(JOINT_STATES, 'sensor_msgs/msg/JointState', 'stream', 'simulator', '1000 Hz',
-          'base_link', 'helix phase and the links'),
+          'base_link', 'helix phase, speed and motor torque (effort), and the links'),
+    Topic(MOTOR, 'sensor_msgs/msg/BatteryState', 'tracking', 'simulator', '100 Hz', 'base_link',
+          'motor supply voltage and current (negative: drawn; NaN at constant frequency)'),
     Topic(IMAGE, 'sensor_msgs/msg/Image', 'image', 'camera', '60 Hz', 'saw_camera',
           'virtual camera frames, bgr8 1280x720', recorded=False),
     Topic(IMAGE_COMPRESSED, 'sensor_msgs/msg/CompressedImage', 'image', 'camera', '60 Hz',

@@ -20,7 +20,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TwistStamped
 import numpy as np
 from saw_ros.ros.cdr import CdrWriter, ENCAPSULATION, NS_PER_S
-from sensor_msgs.msg import PointCloud2, PointField
+from sensor_msgs.msg import BatteryState, PointCloud2, PointField
 
 SURFACE_FRAME = 'surface'
 BODY_FRAME = 'base_link'
@@ -217,7 +217,9 @@ class JointStateCdr:
     """
     JointState with fixed names as CDR.
 
-    Position and velocity float64[len(names)], effort empty.
+    Position and velocity float64[len(names)]; effort empty, or with the helix's ``effort``
+    (the motor torque, N m) first and NaN for the links, whose efforts the model does not
+    resolve.
     """
 
     def __init__(self, names: Sequence[str]):
@@ -231,14 +233,44 @@ class JointStateCdr:
         after_position = w.end + 8 * len(names)
         w = CdrWriter(after_position).u32(len(names)).align(8)
         self._middle = bytes(w.buf)
-        w = CdrWriter(after_position + len(self._middle) + 8 * len(names)).u32(0)
-        self._tail = bytes(w.buf)
+        after_velocity = after_position + len(self._middle) + 8 * len(names)
+        self._tail = bytes(CdrWriter(after_velocity).u32(0).buf)
+        w = CdrWriter(after_velocity).u32(len(names)).align(8)
+        self._effort_head = bytes(w.buf)
+        self._link_efforts = np.full(len(names) - 1, np.nan, '<f8').tobytes()
 
     def __call__(self, phase: float, omega: float, angles: np.ndarray, rates: np.ndarray,
-                 nanoseconds: int) -> bytes:
+                 nanoseconds: int, effort: Optional[float] = None) -> bytes:
         position = struct.pack('<d', phase) + np.ascontiguousarray(angles, '<f8').tobytes()
         velocity = struct.pack('<d', omega) + np.ascontiguousarray(rates, '<f8').tobytes()
         if len(position) != 8 * self.count or len(velocity) != 8 * self.count:
             raise ValueError(f'expected {self.count} joint values')
-        return b''.join((_CLOCK.pack(ENCAPSULATION, *_split_ns(nanoseconds)), self._head,
-                         position, self._middle, velocity, self._tail))
+        parts = [_CLOCK.pack(ENCAPSULATION, *_split_ns(nanoseconds)), self._head, position,
+                 self._middle, velocity]
+        if effort is None:
+            parts.append(self._tail)
+        else:
+            parts += [self._effort_head, struct.pack('<d', effort), self._link_efforts]
+        return b''.join(parts)
+
+
+def motor_msg(voltage: float, current: float, nanoseconds: int,
+              out: Optional[BatteryState] = None) -> BatteryState:
+    """
+    Return the helix motor's supply as a BatteryState (/saw/motor), frame ``base_link``.
+
+    ``voltage`` the supply voltage (V), ``current`` the motor current (A) drawn from it:
+    BatteryState counts a discharge as negative, so the message carries -current. A NaN current
+    (no motor modelled: the helix at constant frequency) stays NaN, "unmeasured" in
+    BatteryState's terms, as do the charge, capacity, percentage and temperature.
+    """
+    msg = _header(BatteryState() if out is None else out, nanoseconds, BODY_FRAME)
+    msg.voltage = float(voltage)
+    msg.current = -float(current)
+    for name in ('temperature', 'charge', 'capacity', 'design_capacity', 'percentage'):
+        setattr(msg, name, math.nan)
+    msg.power_supply_status = (BatteryState.POWER_SUPPLY_STATUS_DISCHARGING if current > 0.0
+                               else BatteryState.POWER_SUPPLY_STATUS_UNKNOWN)
+    msg.present = voltage > 0.0
+    msg.location = 'helix motor'
+    return msg

@@ -16,7 +16,8 @@ from typing import Callable, Iterable, Iterator, List, Optional, Tuple
 
 import numpy as np
 
-from saw_ros.core import Scenario, simulate
+from saw_ros.core import Scenario, simulate, Trajectory
+from saw_ros.core.metrics import run_turns, TURN
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import pose_interpolator, Renderer, RenderOptions, RobotPose
 from saw_ros.vision.scene import Clutter, HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, SceneOptions
@@ -33,6 +34,7 @@ class Run:
     theta: np.ndarray
     phase: np.ndarray
     pose_at: Callable[[float], RobotPose]
+    trajectory: Optional[Trajectory] = None     # the simulation itself
 
     def frame_times(self, fps: float = 60.0, start: float = 0.0) -> np.ndarray:
         n = int(math.floor((self.t[-1] - start) * fps + 1e-9))
@@ -49,10 +51,10 @@ class Run:
 def simulate_run(scenario: Scenario, duration: float) -> Run:
     traj = simulate(scenario, duration)
     q = traj.q[:, 0]
-    f = scenario.frequency
-    phase = (2.0 * math.pi * f * traj.t) % (2.0 * math.pi)
+    # The helix's own angle: a motor (motor.voltage > 0) turns it slower, and unevenly.
+    phase = np.remainder(run_turns(traj), TURN)
     pose_at = pose_interpolator(traj.t, q[:, 0], q[:, 1], q[:, 2], phase)
-    return Run(scenario, traj.t, q[:, 0], q[:, 1], q[:, 2], phase, pose_at)
+    return Run(scenario, traj.t, q[:, 0], q[:, 1], q[:, 2], phase, pose_at, traj)
 
 
 def frames(run: Run, renderer: Renderer, times: Iterable[float],

@@ -85,3 +85,30 @@ def test_bad_reference_files_are_refused_with_the_reason(tmp_path):
     empty.write_text('slope_deg,voltage_V,speed_cm_s,advance_ratio\n20,6,,\n')
     with pytest.raises(ValueError, match='row 2 .*neither speed_cm_s nor advance_ratio'):
         load_reference(empty)
+
+
+def test_a_motor_run_is_compared_over_whole_helix_turns_at_the_frequency_reached():
+    """
+    4 V climbing 20 deg: the helix slows and ripples, so the cycles are its turns.
+
+    Fed the helix's wrapped angle (as /saw/joint_states gives it), the comparator finds the
+    steady state, measures over whole turns and takes v_theory at the mean helix frequency
+    there, as core.metrics does from the recorded speed.
+    """
+    from saw_ros.core.metrics import analyse_run, run_frequency, run_turns
+    s = Scenario().with_values({'motor.voltage': 4.0, 'conditions.slope': math.radians(20)})
+    tr = simulate(s, 5.0)
+    comp = RunComparator(s.robot, s.frequency)
+    feed_truth(comp, tr.t, tr.q[:, 0, 0])
+    for row in zip(tr.t[::5], tr.q[::5, 0, 0]):
+        comp.add_tracked(*row)
+    for t, angle in zip(tr.t, np.remainder(run_turns(tr), 2 * math.pi)):
+        comp.add_helix(t, angle)
+    r = comp.result()
+    assert r.steady, r.status
+    assert r.frequency == pytest.approx(run_frequency(tr), rel=0.005)
+    assert r.frequency < 0.95 * s.frequency
+    cycles = r.window_s * r.frequency
+    assert cycles == pytest.approx(round(cycles), abs=1e-6) and round(cycles) >= 1
+    assert r.ar_sim == pytest.approx(analyse_run(tr).advance_ratio, rel=0.01)
+    assert r.relative_error < 0.002

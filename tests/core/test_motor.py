@@ -10,7 +10,7 @@ import pytest
 
 from saw_ros.core import Scenario, simulate, Simulator
 from saw_ros.core.kinematics import link_geometry, tip_rates, TipRateTable
-from saw_ros.core.metrics import analyse
+from saw_ros.core.metrics import analyse, analyse_run
 from saw_ros.core.motor import MotorLaw
 from saw_ros.core.params import MotorParams
 
@@ -169,11 +169,16 @@ def test_advance_ratio_uses_the_helix_frequency_the_motor_reached():
     s, tr = motor_run(4.0, CLIMB, duration=4.0)
     m = analyse(tr.t, tr.q[:, 0], s.robot, s.frequency, omega=tr.omega[:, 0])
     nominal = analyse(tr.t, tr.q[:, 0], s.robot, s.frequency)
+    # One helix turn later, the motion repeats (the clock's mean period would not: module
+    # docstring of core.metrics): steady, and converged as the paper's Figure 8.
+    assert m.steady_from is not None and m.steady_from < 2.0
+    assert m.cci_2pct_after is not None and m.cci_2pct_after < 2.0
     assert m.frequency == pytest.approx(mean_frequency(tr, 2.0), rel=0.01)
     assert m.frequency < 0.95 * s.frequency
     assert m.v_mean == pytest.approx(nominal.v_mean, rel=0.02)
     assert m.advance_ratio == pytest.approx(m.v_mean / (m.v_theory), rel=1e-12)
     assert m.advance_ratio > nominal.advance_ratio * 1.05
+    assert analyse_run(tr) == m
 
 
 def test_scenarios_with_and_without_motor_stepped_together_match_each_alone():

@@ -235,3 +235,34 @@ def test_cdr_encoders_match_rclpy_serialization():
         differ = np.flatnonzero(reference[:len(ours)] != ours)
         assert (ours[differ] == 0).all(), (cls.__name__, differ)
         assert deserialize_message(raw, cls) == msg, cls.__name__
+
+
+def test_joint_state_carries_the_motor_torque_as_the_helix_effort():
+    names = conv.joint_names(Scenario().robot.wave_links)
+    angles, rates = JointTable(Scenario().robot).angles_and_rates(0.7, 5.5)
+    encode = conv.JointStateCdr(names)
+    with_effort = deserialize_message(encode(0.7, 5.5, angles, rates, 3_000_000, 0.042),
+                                      JointState)
+    assert with_effort.name == names and with_effort.velocity[0] == 5.5
+    assert len(with_effort.effort) == len(names) and with_effort.effort[0] == 0.042
+    assert np.isnan(with_effort.effort[1:]).all()        # the links' efforts are not modelled
+    np.testing.assert_array_equal(with_effort.position[1:], angles)
+    np.testing.assert_array_equal(with_effort.velocity[1:], rates)
+    without = deserialize_message(encode(0.7, 5.5, angles, rates, 3_000_000), JointState)
+    assert len(without.effort) == 0 and list(without.position) == list(with_effort.position)
+
+
+def test_motor_message_counts_the_drawn_current_negative():
+    from sensor_msgs.msg import BatteryState
+    msg = conv.motor_msg(4.0, 0.065, 10_000_000)
+    assert (msg.voltage, msg.current) == (4.0, pytest.approx(-0.065))
+    assert msg.header.frame_id == conv.BODY_FRAME and msg.header.stamp.nanosec == 10_000_000
+    assert msg.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_DISCHARGING
+    assert msg.present and math.isnan(msg.percentage) and math.isnan(msg.charge)
+    # (float32 on the wire)
+    assert deserialize_message(serialize_message(msg), BatteryState).current == pytest.approx(
+        -0.065, rel=1e-7)
+    constant = conv.motor_msg(0.0, math.nan, 20_000_000, out=msg)
+    assert constant is msg and constant.voltage == 0.0 and math.isnan(constant.current)
+    assert not constant.present
+    assert constant.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_UNKNOWN

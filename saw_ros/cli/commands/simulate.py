@@ -101,10 +101,15 @@ def run(args):
             print(f'saw-ros simulate: {exc}', file=sys.stderr)
             return 3
     q = tr.q[:, 0]
-    m = analyse(tr.t, q, scenario.robot, scenario.frequency)
+    # With a motor the helix frequency is an outcome: AR against the one it reached.
+    motor = scenario.motor.voltage > 0.0
+    m = analyse(tr.t, q, scenario.robot, scenario.frequency,
+                omega=tr.omega[:, 0] if motor else None)
     c = scenario.conditions
+    helix = (f'motor {scenario.motor.voltage:g} V, f {m.frequency:.3f} Hz (no load '
+             f'{scenario.frequency:.3f})' if motor else f'f {scenario.frequency:.3f} Hz')
     print(f'scenario: slope {math.degrees(c.slope):.1f} deg, gap {c.gap * 1000:.1f} mm, '
-          f'f {scenario.frequency:.3f} Hz, kn {scenario.surface.normal_stiffness:g} N/m^'
+          f'{helix}, kn {scenario.surface.normal_stiffness:g} N/m^'
           f'{scenario.surface.hertz_exponent:g}, '
           f'kt {scenario.surface.tangential_stiffness:g} N/m, '
           f'mu {scenario.surface.friction_coefficient:g}, F_ext {c.external_force:g} N, '

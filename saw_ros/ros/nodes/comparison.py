@@ -44,6 +44,7 @@ from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_events
+from sensor_msgs.msg import JointState
 
 TRACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -145,6 +146,10 @@ class ComparisonNode(Node):
         self.publisher = self.create_publisher(DiagnosticArray, topics.COMPARISON, LATCHED_QOS)
         self._truth_sub = self.create_subscription(PoseStamped, topics.POSE, self._on_truth,
                                                    with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
+        # The helix's angle from /saw/joint_states, followed only while a motor drives it (its
+        # cycles are then helix turns, docs/motor.md); a constant helix needs no 1 kHz topic.
+        self._helix = cdr.JointPosition('helix')
+        self._helix_sub = None
         # 'ground truth matched' once /saw/pose has a publisher, said ready on /saw/ready
         # (run_pipeline waits for it).
         self._readiness = Readiness(self)
@@ -210,6 +215,17 @@ class ComparisonNode(Node):
         self.scenario_values = merged
         self.comparator.robot = self.scenario.robot
         self.comparator.frequency = self.scenario.frequency
+        self._follow_helix(self.scenario.motor.voltage > 0.0)
+
+    def _follow_helix(self, on: bool) -> None:
+        if on and self._helix_sub is None:
+            self._helix_sub = self.create_subscription(
+                JointState, topics.JOINT_STATES, self._on_helix,
+                with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
+        elif not on and self._helix_sub is not None:
+            self.destroy_subscription(self._helix_sub)
+            self._helix_sub = None
+            self.comparator.helix.clear()
 
     # -- data --------------------------------------------------------------------------------
     def _report_matched(self):
@@ -229,6 +245,11 @@ class ComparisonNode(Node):
         self._last_truth_ns = t_ns
         self._last_truth_wall = self._wall.now()
         self.comparator.add_truth(t, x)
+
+    def _on_helix(self, data: bytes):
+        t_ns, angle = self._helix(data)
+        if angle is not None:
+            self.comparator.add_helix(t_ns / 1e9, angle)
 
     def _on_tracked(self, msg: PoseStamped):
         self.comparator.add_tracked(conv.stamp_ns(msg.header.stamp) / 1e9,

@@ -6,6 +6,11 @@ apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts, /saw/con
 /saw/joint_states; and the robot for RViz / Foxglove on /saw/markers at ``markers_rate`` (60 Hz)
 of simulated time. docs/simulator.md lists the topics, frames, QoS and parameters.
 
+Motor. The helix turns at conditions.frequency, or, with motor.voltage > 0, at the speed the
+core's DC motor reaches under the contacts' load (docs/motor.md). /saw/joint_states carries the
+helix's actual speed, and with a motor its torque (N m) as the helix's effort; /saw/motor the
+supply voltage and the motor current as a BatteryState at MOTOR_RATE of simulated time.
+
 Time. A wall-clock timer wakes the node every few milliseconds; each wake-up runs as many steps
 as are due at ``real_time_factor`` (steps = rtf * elapsed wall time / dt), not one step per tick:
 rclpy does not catch up missed timer ticks. When the machine cannot keep up the simulation falls
@@ -53,6 +58,9 @@ TOPICS = {name: message_class(topics.topic(name).type) for name in topics.step_t
 TICK_PERIOD = 0.005          # s of wall time between wake-ups
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
 MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
+# /saw/motor per second of simulated time. Not every step: each 1 kHz topic costs the graph's
+# real-time factor, and 100 Hz still resolves the current's ripple at the wave's link rate.
+MOTOR_RATE = 100.0
 
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
 WARN_EVERY = 5.0             # s of wall time between "falling behind" warnings
@@ -91,9 +99,13 @@ class SimulatorNode(Node):
 
         scenario = self.params.scenario
         self.dt = scenario.integration.dt
-        self._omega = 2.0 * math.pi * scenario.frequency
         self._joints = JointTable(scenario.robot)
         self._joint_names = conv.joint_names(scenario.robot.wave_links)
+        motor_topic = topics.topic(topics.MOTOR)
+        self._pub_motor = self.create_publisher(message_class(motor_topic.type), topics.MOTOR,
+                                                publisher_profile(motor_topic.qos))
+        self._motor_every = max(1, int(round(1.0 / (MOTOR_RATE * self.dt))))
+        self._motor_msg = message_class(motor_topic.type)()
 
         self._publishers_all = tuple(
             self.create_publisher(msg_type, topic, publisher_profile(topics.topic(topic).qos))
@@ -165,7 +177,6 @@ class SimulatorNode(Node):
 
     def _on_scenario(self, scenario) -> None:
         self.sim.set_scenarios([scenario])
-        self._omega = 2.0 * math.pi * scenario.frequency
         self.get_logger().info(
             f'parameters changed at t = {self.steps * self.dt:.3f} s: helix '
             f'{scenario.frequency:g} Hz (from {scenario.frequency_source}), slope '
@@ -259,15 +270,23 @@ class SimulatorNode(Node):
                                      contacts.slipping[0])
         fx, fy, mz = sim.contact_wrench[:, 0].tolist()      # the core's, surface axes
         fx, fy = conv.body_axes(fx, fy, theta)
-        angles, rates = self._joints.angles_and_rates(float(sim.phase[0]), self._omega)
+        # The helix's speed and torque are the core's: constant, or the motor's under load.
+        omega = float(sim.omega[0])
+        driven = bool(sim.driven[0])
+        angles, rates = self._joints.angles_and_rates(float(sim.phase[0]), omega)
         # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
         self._pub_clock.publish(conv.clock_cdr(ns))
         self._pub_pose.publish(conv.pose_cdr(x, y, theta, ns))
         self._pub_twist.publish(conv.twist_cdr(vx, vy, w, ns))
         self._pub_contacts.publish(self._contacts_cdr(points, ns))
         self._pub_wrench.publish(conv.wrench_cdr(fx, fy, mz, ns))
-        self._pub_joints.publish(self._joints_cdr(float(sim.phase[0]), self._omega, angles,
-                                                  rates, ns))
+        self._pub_joints.publish(self._joints_cdr(
+            float(sim.phase[0]), omega, angles, rates, ns,
+            float(sim.motor_torque[0]) if driven else None))
+        if self.steps % self._motor_every == 0:
+            volts = self.params.scenario.motor.voltage if driven else 0.0
+            self._pub_motor.publish(conv.motor_msg(volts, float(sim.current[0]), ns,
+                                                   out=self._motor_msg))
         if self._markers.due(ns):
             scenario = self.params.scenario
             self._pub_markers.publish(markers.marker_array_cdr(scene_markers.scene(
