@@ -72,7 +72,7 @@ def add_arguments(p):
     p.add_argument('--duration', type=float, default=None,
                    help='simulated seconds (default: integration.duration, 5 s)')
     p.add_argument('--csv', type=Path, help='write the time series (pose, velocities, per-tip '
-                   'forces) to this CSV file')
+                   'forces, helix speed; with a motor its torque and current) to this CSV file')
     p.add_argument('--list', action='store_true', help='list every parameter with unit and range')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
 
@@ -132,7 +132,14 @@ def write_csv(path: Path, tr) -> None:
     tips = [f'{side}{i:02d}' for side in ('bottom', 'top') for i in range(n)]
     header = ['t_s', 'x_m', 'y_m', 'theta_rad', 'vx_m_s', 'vy_m_s', 'w_rad_s']
     header += [f'fn_{tip}_N' for tip in tips] + [f'ft_{tip}_N' for tip in tips]
-    data = np.column_stack([tr.t, q, tr.normal[:, 0], tr.tangential[:, 0]])
+    columns = [tr.t, q, tr.normal[:, 0], tr.tangential[:, 0]]
+    # The helix (docs/motor.md): its speed, and with a motor the motor's torque and current.
+    header.append('helix_rad_s')
+    columns.append(tr.omega[:, 0])
+    if tr.torque is not None:
+        header += ['motor_torque_Nm', 'motor_current_A']
+        columns += [tr.torque[:, 0], tr.current[:, 0]]
+    data = np.column_stack(columns)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, 'w', newline='') as f:
         writer = csv.writer(f)
