@@ -8,7 +8,7 @@ from saw_ros.cli.main import main
 
 def test_figures_quick_subset_writes_png_csv_and_report(tmp_path, capsys):
     assert main(['figures', '--out', str(tmp_path), '--only', '4,9,20', '--quick',
-                 '--quiet']) == 0
+                 '--quiet', '--calibrated', 'none']) == 0
     figs = tmp_path / 'figures'
     for n in ('4', '9', '20'):
         png, table = figs / f'figure{n}.png', figs / f'figure{n}.csv'
@@ -24,6 +24,25 @@ def test_figures_quick_subset_writes_png_csv_and_report(tmp_path, capsys):
     assert '| G3 |' in report and '| S1 |' in report and '| W5 |' in report
     assert '| K1 |' not in report          # figure 10 was not requested
     assert 'figures/figure9.png' in report
+
+
+def test_figures_report_shows_the_calibrated_set_beside_the_defaults(tmp_path, capsys):
+    # A calibrated file as `saw-ros calibrate --write-config` writes it, trained on A1 and A2.
+    from saw_ros.analysis.calibrate import calibrated_yaml
+    from saw_ros.interface.config import config_path
+    path = tmp_path / 'calibrated.yaml'
+    path.write_text(calibrated_yaml(config_path('simulator.yaml').read_text(),
+                                    {'surface.restitution': 0.5}, ['test'], ['A1', 'A2']))
+    assert main(['figures', '--out', str(tmp_path), '--only', '11', '--quick', '--quiet',
+                 '--calibrated', str(path)]) == 0
+    report = (tmp_path / 'fidelity.md').read_text()
+    assert '| id | where | claim | paper | defaults | calibrated | tolerance | held (defaults) ' \
+        '| held (calibrated) |' in report
+    assert '| A1 *trained* |' in report and '| F1 |' in report
+    assert 'surface.restitution = 0.5' in report
+    assert 'not trained on' in capsys.readouterr().err
+    assert main(['figures', '--out', str(tmp_path), '--calibrated', str(tmp_path / 'no.yaml'),
+                 '--quick']) == 2
 
 
 def test_figures_rejects_unknown_figure(tmp_path, capsys):

@@ -10,14 +10,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 import time
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional, Sequence, Union
 
 from saw_ros.analysis.figures import claims as claims_mod
 from saw_ros.analysis.figures import plots as render, sweeps
 from saw_ros.analysis.figures.sweeps import FIGURES
+from saw_ros.core.params import Scenario
 from saw_ros.core.pool import Pool
+from saw_ros.interface.config import config_path, load_scenario
 
-__all__ = ['FIGURES', 'reproduce', 'Result']
+CALIBRATED_FILE = 'simulator_calibrated.yaml'
+
+__all__ = ['Calibrated', 'FIGURES', 'reproduce', 'Result']
 
 
 @dataclass
@@ -28,15 +32,37 @@ class Result:
     report: Optional[Path]
     elapsed: float
     timings: Dict[str, float]
+    calibrated: Optional['Calibrated'] = None
+
+
+@dataclass
+class Calibrated:
+    """The same claims with a calibrated parameter set (msg_config/simulator_calibrated.yaml)."""
+
+    path: Path
+    values: Dict[str, float]           # the parameters that differ from the defaults
+    trained: List[str]                 # claim ids the calibration was fitted to
+    data: sweeps.Data
+    claims: List[claims_mod.Claim]
+
+
+def calibrated_file() -> Optional[Path]:
+    """Return msg_config/simulator_calibrated.yaml if it exists (the shipped calibrated set)."""
+    path = config_path(CALIBRATED_FILE)
+    return path if path.exists() else None
 
 
 def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
               progress: bool = False, command: str = 'saw-ros figures',
-              write_report: bool = True, pool: Optional[Pool] = None) -> Result:
+              write_report: bool = True, pool: Optional[Pool] = None,
+              calibrated: Union[str, Path, None] = 'shipped') -> Result:
     """
     Run the sweeps (on ``pool`` if given: see ``sweeps.run_waves``), write figures and report.
 
-    Return what was computed, the claims, the files written and the timings.
+    ``calibrated``: a calibrated simulator parameter file whose claims the report shows beside
+    the defaults' ('shipped': msg_config/simulator_calibrated.yaml if it exists; None: defaults
+    only). The figures are drawn with the defaults. Return what was computed, the claims, the
+    files written and the timings.
     """
     start = time.perf_counter()
     out_dir = Path(out_dir)
@@ -54,8 +80,25 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
             bar.total = n
             bar.refresh()
 
-    data = sweeps.compute(figures, quick, progress=bar.update if bar is not None else None,
-                          on_total=on_total, pool=pool)
+    if calibrated == 'shipped':
+        calibrated = calibrated_file()
+    cal_base = load_scenario(Path(calibrated)) if calibrated is not None else None
+
+    def on_total_both(n):
+        on_total(n * (2 if cal_base is not None else 1))   # both parameter sets, one bar
+
+    update = bar.update if bar is not None else None
+    data = sweeps.compute(figures, quick, progress=update, on_total=on_total_both, pool=pool)
+    cal = None
+    if cal_base is not None:
+        t0 = time.perf_counter()
+        cal_data = sweeps.compute(figures, quick, progress=update, pool=pool, base=cal_base)
+        from saw_ros.analysis.calibrate import trained_claims_of
+        defaults = Scenario().flat()
+        cal = Calibrated(Path(calibrated), {k: v for k, v in cal_base.flat().items()
+                                            if v != defaults[k]},
+                         trained_claims_of(calibrated), cal_data, claims_mod.evaluate(cal_data))
+        data.timings['calibrated_s'] = time.perf_counter() - t0
     if bar is not None:
         bar.close()
     t0 = time.perf_counter()
@@ -68,6 +111,6 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
     report_path = None
     if write_report:
         report_path = out_dir / 'fidelity.md'
-        report_path.write_text(render.report(data, claims, 'figures', elapsed, command))
+        report_path.write_text(render.report(data, claims, 'figures', elapsed, command, cal))
     data.timings['total_s'] = time.perf_counter() - start
-    return Result(data, claims, files, report_path, elapsed, data.timings)
+    return Result(data, claims, files, report_path, elapsed, data.timings, cal)

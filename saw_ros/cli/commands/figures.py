@@ -32,6 +32,10 @@ def add_arguments(p):
                    '(4, 7, 8, 9, 10, 11, 20, 21); the report then covers their claims only')
     p.add_argument('--quick', action='store_true', help='coarse grids and 3 s runs')
     p.add_argument('--quiet', action='store_true', help='no progress bar, no claim table')
+    p.add_argument('--calibrated', default='shipped', metavar='PATH',
+                   help='calibrated simulator parameter file whose claims the report shows '
+                   'beside the defaults (default: msg_config/simulator_calibrated.yaml if it '
+                   'exists; "none": the defaults only)')
     add_pool_arguments(p)
 
 
@@ -47,15 +51,26 @@ def run(args):
         raise UserError(f'cannot create {args.out}: {exc}') from None
     command = 'saw-ros figures' + (' --quick' if args.quick else '') + \
         (f' --only {",".join(wanted)}' if args.only else '')
+    calibrated = None if args.calibrated == 'none' else args.calibrated
+    if calibrated not in (None, 'shipped'):
+        if not Path(calibrated).is_file():
+            raise UserError(f'no such calibrated parameter file: {calibrated}')
+        command += f' --calibrated {calibrated}'
     with pool_from_args(args) as pool:
         result = reproduce(args.out, wanted, quick=args.quick, progress=not args.quiet,
-                           command=command, pool=pool)
+                           command=command, pool=pool, calibrated=calibrated)
     if not args.quiet:
         for c in result.claims:
             mark = 'held' if c.held else 'NOT held'
             print(f'{c.id:3s} {mark:8s} {c.statement[:60]:60s} paper {c.paper[:14]:14s} '
                   f'ours {c.ours[:40]}')
     held = sum(1 for c in result.claims if c.held)
+    cal = result.calibrated
+    cal_text = '' if cal is None else (
+        f', calibrated {sum(1 for c in cal.claims if c.held)} ({cal.path.name}; '
+        f'{sum(1 for c in cal.claims if c.held and c.id not in cal.trained)} of '
+        f'{sum(1 for c in cal.claims if c.id not in cal.trained)} not trained on)')
     print(f'{len(result.files)} files in {args.out / "figures"}; report {result.report}; '
-          f'{held} of {len(result.claims)} claims held; {result.elapsed:.1f} s', file=sys.stderr)
+          f'{held} of {len(result.claims)} claims held{cal_text}; {result.elapsed:.1f} s',
+          file=sys.stderr)
     return 0

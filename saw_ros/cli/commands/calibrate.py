@@ -1,0 +1,143 @@
+r"""
+Fit unknown model parameters to measured speeds and advance ratios (CMA-ES on the batched core).
+
+Targets: a CSV of conditions with a measured speed or AR, in the format of
+msg_config/reference_paper.csv (slope_deg, voltage_V, speed_cm_s, advance_ratio, source) or of
+the footage campaign's footage.csv (`saw-ros campaign --videos ...`); by default the paper's stated
+numbers (its three measured speeds, and the level and vertical AR of Figure 21 at 1 Hz).
+Parameters: dotted names, each with its bounds (name:low:high; a bare name takes the shipped
+physical bounds, see docs/calibration.md). OUT gets state.pkl after every generation (--resume
+OUT continues), history.csv, result.json (best values, error per target, sensitivity, which
+parameters the targets pin down), fit.png, sensitivity.png and convergence.png.
+
+For example:
+  saw-ros calibrate                                  # the paper's targets, the default parameters
+  saw-ros calibrate --targets out/footage/footage.csv --out out/my_robot --params \
+      surface.normal_stiffness surface.restitution motor.hz_per_volt:0.15:0.35
+  saw-ros calibrate --resume out/my_robot --generations 60      # continue, or go further
+  saw-ros calibrate --write-config msg_config/simulator_calibrated.yaml   # the shipped file
+  python -m saw_ros.ros.nodes.simulator --ros-args --params-file \
+      msg_config/simulator_calibrated.yaml
+"""
+from pathlib import Path
+import sys
+import time
+
+from saw_ros.cli.errors import UserError
+from saw_ros.cli.pool import add_pool_arguments, pool_from_args
+
+HELP = 'fit model parameters to measured speeds/ARs (CMA-ES), with their uncertainty'
+
+QUICK = {'generations': 3, 'popsize': 6}
+
+
+def add_arguments(p):
+    p.add_argument('--targets', type=Path, default=None, metavar='CSV',
+                   help="measured targets (default: the paper's three speeds and its level and "
+                   'vertical AR)')
+    p.add_argument('--params', nargs='+', default=None, metavar='NAME[:LOW:HIGH]',
+                   help='parameters to fit (default: surface.normal_stiffness, '
+                   'surface.restitution, surface.hysteresis_speed, motor.hz_per_volt, '
+                   'motor.resistance, motor.friction_torque)')
+    p.add_argument('--out', type=Path, default=None,
+                   help='output folder (default out/calibrate_<date-time>)')
+    p.add_argument('--resume', type=Path, default=None, metavar='DIR',
+                   help='continue the run saved in DIR (its targets, parameters, seed)')
+    p.add_argument('--generations', type=int, default=None,
+                   help='CMA-ES generations (default 60; --quick 3)')
+    p.add_argument('--popsize', type=int, default=None,
+                   help='candidates per generation, one batch (default 24; --quick 6)')
+    p.add_argument('--seed', type=int, default=1, help='random seed (default 1)')
+    p.add_argument('--quick', action='store_true', help='a tiny budget (tests, a first look)')
+    p.add_argument('--write-config', type=Path, default=None, metavar='PATH',
+                   help='also write the calibrated simulator parameter file there (e.g. '
+                   'msg_config/simulator_calibrated.yaml)')
+    p.add_argument('--quiet', action='store_true', help='no progress bar, no table')
+    add_pool_arguments(p)
+
+
+def command_line(args) -> str:
+    """Return the command that reproduces this run (for the result and the parameter file)."""
+    parts = ['saw-ros calibrate']
+    if args.targets:
+        parts.append(f'--targets {args.targets}')
+    if args.params:
+        parts.append('--params ' + ' '.join(args.params))
+    if args.quick:
+        parts.append('--quick')
+    for flag in ('generations', 'popsize'):
+        if getattr(args, flag) is not None:
+            parts.append(f'--{flag} {getattr(args, flag)}')
+    if args.seed != 1:
+        parts.append(f'--seed {args.seed}')
+    if args.workers != 1 or args.scheduler:
+        parts.append(f'--scheduler {args.scheduler}' if args.scheduler else
+                     f'--workers {args.workers}')
+    if args.out:
+        parts.append(f'--out {args.out}')
+    if args.write_config:
+        parts.append(f'--write-config {args.write_config}')
+    return ' '.join(parts)
+
+
+def run(args):
+    from saw_ros.analysis import calibrate as cal
+    budget = dict(cal.Settings().__dict__)
+    if args.quick:
+        budget.update(QUICK)
+    for flag in ('generations', 'popsize'):
+        value = getattr(args, flag)
+        if value is not None:
+            if value < (2 if flag == 'popsize' else 1):
+                raise UserError(f'--{flag} must be at least {2 if flag == "popsize" else 1}')
+            budget[flag] = value
+    settings = cal.Settings(budget['generations'], budget['popsize'], args.seed, budget['sigma'])
+    if args.resume and (args.targets or args.params or args.out):
+        raise UserError('--resume continues a saved run with its own targets, parameters and '
+                        'folder: do not give --targets, --params or --out with it')
+    folder = args.resume or args.out or Path('out') / time.strftime('calibrate_%Y-%m-%d_%H-%M-%S')
+    try:
+        targets = [] if args.resume else (
+            cal.load_targets(args.targets) if args.targets else cal.paper_targets())
+        params = [] if args.resume else (
+            cal.make_parameters(args.params) if args.params else cal.default_parameters())
+        command = command_line(args)
+        with pool_from_args(args) as pool:
+            start = time.perf_counter()
+            result = cal.calibrate(targets, params, folder, settings, resume=bool(args.resume),
+                                   progress=not args.quiet, pool=pool, command=command,
+                                   claims='quick' if args.quick else 'full')
+        elapsed = time.perf_counter() - start
+    except cal.CalibrationError as exc:
+        raise UserError(str(exc)) from None
+    d = result.data
+    if not args.quiet:
+        print(f'{"target":28s} {"measured":>12s} {"defaults":>12s} {"calibrated":>12s} '
+              f'{"error":>14s}')
+        for t in d['targets']:
+            tg = cal.Target(t['name'], t['slope_deg'], t['quantity'], t['measured'],
+                            t['voltage_V'], t['frequency_hz'])
+            print(f'{t["label"]:28s} {tg.display(t["measured"]):>12s} '
+                  f'{tg.display(t["default"]):>12s} {tg.display(t["calibrated"]):>12s} '
+                  f'{t["error_default_pct"]:5.1f} -> {t["error_calibrated_pct"]:4.1f} %')
+        for p in d['parameters']:
+            std = p['relative_std']
+            band = f'+-{100 * std:.0f} %' if std is not None else 'unbounded'
+            print(f'{p["name"]:28s} {p["value"]:12.6g} (default {p["default"]:.6g}; 1 sigma '
+                  f'{band}: {"pinned down" if p["identified"] else "NOT pinned down"}'
+                  f'{", at a bound" if p["at_bound"] else ""})')
+    c = d['claims']
+    print(f'claims held (the fidelity report, {c["grids"]} grids; trained on '
+          f'{", ".join(c["trained"]) or "none"}): defaults {c["defaults"]["held_untrained"]} of '
+          f'{c["defaults"]["untrained"]} not trained on, calibrated '
+          f'{c["calibrated"]["held_untrained"]} of {c["calibrated"]["untrained"]} (not held: '
+          f'{", ".join(c["calibrated"]["not_held"]) or "none"})')
+    if args.write_config:
+        try:
+            path = cal.write_calibrated_yaml(result, args.write_config, command)
+        except OSError as exc:
+            raise UserError(f'cannot write {args.write_config}: {exc}') from None
+        print(f'calibrated parameter file: {path}', file=sys.stderr)
+    print(f'{folder}: loss {d["loss_default"]:.3e} -> {d["loss"]:.3e} after '
+          f'{d["generations"]} generations of {d["popsize"]}; {elapsed:.1f} s', file=sys.stderr)
+    return 0
