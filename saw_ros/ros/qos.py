@@ -80,11 +80,23 @@ def profile(name: str) -> QoSProfile:
 
 
 def publisher_profile(name: str) -> QoSProfile:
-    """Return the QoS our publishers offer on a topic with the table's profile ``name``."""
+    """
+    Return the QoS our publishers offer on a topic with the table's profile ``name``.
+
+    Images and the 60 Hz 'tracking' outputs are offered transient-local, as image_publisher_qos
+    says why: the main job's recorder matches the vision node's topics independently of the
+    simulator's (whose matching starts the run), and under load it matched one of them after
+    the first frame (the bag lacked that frame's message); with the writer's history it still
+    gets it. Volatile readers match as before.
+    """
     if name in ('stream', 'clock'):
         return with_depth(_PROFILES[name], PUBLISHER_DEPTH)
     if name == 'image':
         return image_publisher_qos()
+    if name == 'tracking':
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=TRACKING_DEPTH,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
     return _PROFILES[name]
 
 

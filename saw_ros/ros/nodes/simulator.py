@@ -48,7 +48,7 @@ from saw_ros.ros import conversions as conv
 from saw_ros.ros import markers
 from saw_ros.ros.params import declare_spec
 from saw_ros.ros.params import ScenarioParameters, SIMULATOR_EXCLUDED
-from saw_ros.ros.qos import message_class, profile, publisher_profile
+from saw_ros.ros.qos import message_class, publisher_profile
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_node
 from std_srvs.srv import Trigger
 
@@ -118,7 +118,7 @@ class SimulatorNode(Node):
         self._markers = markers.Decimator(float(self.get_parameter('markers_rate').value))
         self._pub_markers = self.create_publisher(
             message_class(topics.topic(topics.MARKERS).type), topics.MARKERS,
-            profile(topics.topic(topics.MARKERS).qos))
+            publisher_profile(topics.topic(topics.MARKERS).qos))
 
         self.create_service(Trigger, '~/reset', self._on_reset)
 

@@ -41,7 +41,7 @@ from saw_ros.ros import conversions as conv
 from saw_ros.ros import markers
 from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, yaml_text
-from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, profile, STREAM_QOS, with_depth
+from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, publisher_profile, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 from saw_ros.vision import compressed
@@ -140,15 +140,16 @@ class VisionNode(Node):
         self._pending = deque(maxlen=PENDING)
         self.results = 0
         pub = self.create_publisher
-        self._pub_front = pub(PointStamped, topics.TRACKING_FRONT, STREAM_QOS)
-        self._pub_back = pub(PointStamped, topics.TRACKING_BACK, STREAM_QOS)
-        self._pub_pose = pub(PoseStamped, topics.TRACKING_POSE, STREAM_QOS)
-        self._pub_twist = pub(TwistStamped, topics.TRACKING_TWIST, STREAM_QOS)
-        self._pub_smooth = pub(TwistStamped, topics.TRACKING_TWIST_SMOOTHED, STREAM_QOS)
-        self._pub_steady = pub(TwistStamped, topics.TRACKING_STEADY_SPEED, STREAM_QOS)
-        self._pub_status = pub(DiagnosticArray, topics.TRACKING_STATUS, STREAM_QOS)
+        out_qos = publisher_profile('tracking')
+        self._pub_front = pub(PointStamped, topics.TRACKING_FRONT, out_qos)
+        self._pub_back = pub(PointStamped, topics.TRACKING_BACK, out_qos)
+        self._pub_pose = pub(PoseStamped, topics.TRACKING_POSE, out_qos)
+        self._pub_twist = pub(TwistStamped, topics.TRACKING_TWIST, out_qos)
+        self._pub_smooth = pub(TwistStamped, topics.TRACKING_TWIST_SMOOTHED, out_qos)
+        self._pub_steady = pub(TwistStamped, topics.TRACKING_STEADY_SPEED, out_qos)
+        self._pub_status = pub(DiagnosticArray, topics.TRACKING_STATUS, out_qos)
         self._pub_markers = pub(MarkerArray, topics.TRACKING_MARKERS,
-                                profile(topics.topic(topics.TRACKING_MARKERS).qos))
+                                publisher_profile(topics.topic(topics.TRACKING_MARKERS).qos))
         # Raw: the 2.7 MB pixels are read in place (cdr.ImageView) instead of being converted
         # to a Python array and copied again.
         image_qos = with_depth(IMAGE_QOS, IMAGE_PUBLISHER_DEPTH)
