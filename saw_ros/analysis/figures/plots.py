@@ -361,6 +361,11 @@ def _both_sets(claims: List[Claim], cal) -> List[str]:
     lines.append(f'Held with the calibrated set but not with the defaults: '
                  f'{", ".join(gained) or "none"}. Held with the defaults but not with the '
                  f'calibrated set: {", ".join(lost) or "none"}.')
+    if cal.values and all(name.startswith('motor.') for name in cal.values):
+        lines += ['', 'The calibrated set changes the motor only, and every sweep of this '
+                  'report turns the helix at a constant frequency (as the simulation of the '
+                  'paper did): the two columns agree by construction. What the motor changes '
+                  'is the measured speeds (docs/calibration.md).']
     return lines
 
 

@@ -36,9 +36,9 @@ def add_arguments(p):
                    help="measured targets (default: the paper's three speeds and its level and "
                    'vertical AR)')
     p.add_argument('--params', nargs='+', default=None, metavar='NAME[:LOW:HIGH]',
-                   help='parameters to fit (default: surface.normal_stiffness, '
-                   'surface.restitution, surface.hysteresis_speed, motor.hz_per_volt, '
-                   'motor.resistance, motor.friction_torque)')
+                   help='parameters to fit (default: motor.hz_per_volt, motor.resistance, '
+                   'motor.friction_torque; bare names with shipped bounds also: '
+                   'surface.normal_stiffness, surface.restitution, surface.hysteresis_speed)')
     p.add_argument('--out', type=Path, default=None,
                    help='output folder (default out/calibrate_<date-time>)')
     p.add_argument('--resume', type=Path, default=None, metavar='DIR',
@@ -119,7 +119,8 @@ def run(args):
                             t['voltage_V'], t['frequency_hz'])
             print(f'{t["label"]:28s} {tg.display(t["measured"]):>12s} '
                   f'{tg.display(t["default"]):>12s} {tg.display(t["calibrated"]):>12s} '
-                  f'{t["error_default_pct"]:5.1f} -> {t["error_calibrated_pct"]:4.1f} %')
+                  f'{t["error_default_pct"]:5.1f} -> {t["error_calibrated_pct"]:4.1f} %'
+                  f'{"" if t["informative"] else " (no fitted parameter moves it)"}')
         for p in d['parameters']:
             std = p['relative_std']
             band = f'+-{100 * std:.0f} %' if std is not None else 'unbounded'
