@@ -6,16 +6,18 @@ msg_config/reference_paper.csv (slope_deg, voltage_V, speed_cm_s, advance_ratio,
 the footage campaign's footage.csv (`saw-ros campaign --videos ...`); by default the paper's stated
 numbers (its three measured speeds, and the level and vertical AR of Figure 21 at 1 Hz).
 Parameters: dotted names, each with its bounds (name:low:high; a bare name takes the shipped
-physical bounds, see docs/calibration.md). OUT gets state.pkl after every generation (--resume
+physical bounds, see docs/calibration.md); by default the motor's hz_per_volt, resistance and
+friction_torque, which the speeds pin down. OUT gets state.pkl after every generation (--resume
 OUT continues), history.csv, result.json (best values, error per target, sensitivity, which
 parameters the targets pin down), fit.png, sensitivity.png and convergence.png.
 
 For example:
-  saw-ros calibrate                                  # the paper's targets, the default parameters
+  saw-ros calibrate                                  # the paper's targets, the motor
   saw-ros calibrate --targets out/footage/footage.csv --out out/my_robot --params \
-      surface.normal_stiffness surface.restitution motor.hz_per_volt:0.15:0.35
+      motor.hz_per_volt motor.resistance:2:20 surface.restitution   # yours, your bounds
   saw-ros calibrate --resume out/my_robot --generations 60      # continue, or go further
-  saw-ros calibrate --write-config msg_config/simulator_calibrated.yaml   # the shipped file
+  saw-ros calibrate --workers 2 --out docs/calibration \
+      --write-config msg_config/simulator_calibrated.yaml       # the shipped calibration
   python -m saw_ros.ros.nodes.simulator --ros-args --params-file \
       msg_config/simulator_calibrated.yaml
 """
