@@ -116,8 +116,10 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
         # The tracker reads the JPEG stream the recorder keeps: the camera then publishes no raw
         # frames at all (12 ms each; decoding costs the tracker less, and JPEG quality 90 tracks
         # within the raw tolerances: tests/ros/test_vision_nodes.py).
-        launch('vision', use_sim_time=True, slope=slope, image_transport='compressed')
-        launch('camera', use_sim_time=True, slope=slope, **camera_params)
+        # Neither runs on use_sim_time: their outputs carry the frames' stamps anyway, and a
+        # use_sim_time node takes every /clock tick in Python (1000 callbacks a second each).
+        launch('vision', slope=slope, image_transport='compressed')
+        launch('camera', slope=slope, **camera_params)
         if record:
             # With a recorder the simulator starts stepping once the recorder has matched its
             # topics (/saw/twist & co. have no other subscriber). So the recorder comes last:
