@@ -49,3 +49,14 @@ def test_mistakes_are_one_line_errors(tmp_path, capsys):
     assert 'nothing to resume' in capsys.readouterr().err
     assert main(['calibrate', '--resume', str(tmp_path), '--params', 'surface.restitution']) == 2
     assert 'do not give' in capsys.readouterr().err
+
+
+def test_without_the_optimiser_package_calibrate_says_what_to_install(tmp_path, monkeypatch,
+                                                                      capsys):
+    """A ROS install from rosdep lacks cmaes (no rosdep key): one line, not a traceback."""
+    import sys
+    monkeypatch.setitem(sys.modules, 'cmaes', None)          # import cmaes -> ImportError
+    assert main(['calibrate', '--quick', '--out', str(tmp_path / 'run')]) == 2
+    err = capsys.readouterr().err
+    assert 'pip install cmaes==0.13.1' in err and 'Traceback' not in err
+    assert not (tmp_path / 'run').exists()

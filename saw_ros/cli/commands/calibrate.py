@@ -83,6 +83,11 @@ def command_line(args) -> str:
 
 
 def run(args):
+    try:
+        import cmaes  # noqa: F401  (the optimiser; not a rosdep key, so a ROS install may lack it)
+    except ImportError:
+        raise UserError('saw-ros calibrate needs the Python package cmaes: pip install '
+                        'cmaes==0.13.1 (requirements.txt pins it)') from None
     from saw_ros.analysis import calibrate as cal
     budget = dict(cal.Settings().__dict__)
     if args.quick:
