@@ -66,6 +66,18 @@ def test_figures_command_with_scheduler_writes_the_local_csv(scheduler, tmp_path
     assert len(rows[0]) > 5 and rows[0] == rows[1]
 
 
+def test_calibration_on_the_cluster_equals_the_local_pool(scheduler, tmp_path):
+    """The same quick calibration, two local workers against the two-worker cluster."""
+    import json
+    values = {}
+    for name, where in (('local', ['--workers', '2']), ('dask', ['--scheduler', scheduler])):
+        assert main(['calibrate', '--quick', '--quiet', '--out', str(tmp_path / name)]
+                    + where) == 0
+        result = json.loads((tmp_path / name / 'result.json').read_text())
+        values[name] = [(p['name'], p['value']) for p in result['parameters']]
+    assert values['local'] == values['dask'] and len(values['local']) == 3
+
+
 def test_unreachable_scheduler_is_one_clear_line_quickly(capsys):
     start = time.perf_counter()
     with pytest.raises(PoolError, match=r'cannot reach the Dask scheduler at tcp://127\.0\.0\.1:9 '
