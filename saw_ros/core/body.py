@@ -20,6 +20,7 @@ HEAD_HALF_HEIGHT = 0.013        # m, at most 45 % of the gap (motor and batterie
 TAIL_LENGTH = 0.03              # m: the tail plate that carries the back marker
 TAIL_HALF_HEIGHT = 0.012        # m
 LINK_PLATE_WIDTH = 0.6          # share of the link width a drawn link plate takes (gaps between)
+DENT_HALF_WIDTH = 0.6           # half-width of a surface's dent under a tip, in link widths
 FRONT_MARKER_X = 0.16           # m: body x of the pink markers, on the body axis, symmetric
 BACK_MARKER_X = -0.16           # about the COM, so that their midpoint is the COM
 
@@ -62,3 +63,19 @@ def link_plates(robot: RobotParams, centres, directions) -> np.ndarray:
     centres = np.asarray(centres)
     return np.stack([centres + along + normal, centres - along + normal,
                      centres - along - normal, centres + along - normal], axis=-1)
+
+
+def dent_half_width(robot: RobotParams) -> float:
+    """Return the half-width of the dent a tip presses into a surface, m (a drawing choice)."""
+    return DENT_HALF_WIDTH * robot.link
+
+
+def dent(x: float, depth: float, half_width: float, samples: int = 9):
+    """
+    Return a tip's dent in a surface as (abscissae, depths): a cos^2 bump, ``depth`` deep.
+
+    Centred on the tip's x, zero at +-``half_width``: the squeezed band the camera and the
+    viewers draw where a tip presses in.
+    """
+    xs = np.linspace(x - half_width, x + half_width, samples)
+    return xs, depth * np.cos(0.5 * np.pi * (xs - x) / half_width) ** 2

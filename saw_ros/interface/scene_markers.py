@@ -25,6 +25,8 @@ Point = Tuple[float, float, float]
 Colour = Tuple[float, float, float, float]
 
 SURFACE_COLOUR: Colour = (0.55, 0.55, 0.6, 1.0)
+SQUEEZE_COLOUR: Colour = (0.95, 0.55, 0.2, 0.8)     # the squeezed band of a surface
+SQUEEZE_Z = -0.001          # m: just behind the link plates (z = 0) that press into it
 BODY_COLOUR: Colour = (0.25, 0.25, 0.27, 1.0)      # the camera's dark grey
 LINK_COLOUR: Colour = (0.78, 0.78, 0.76, 1.0)      # light grey plates, as on camera
 MARKER_COLOUR: Colour = (1.0, 0.25, 0.6, 1.0)      # the pink of the real markers
@@ -129,6 +131,34 @@ def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: floa
     return shapes
 
 
+def squeezed(robot_params: RobotParams, gap: float, contacts) -> List[Shape]:
+    """
+    Return the surfaces' squeezed bands: where each touching tip presses in, its dent.
+
+    One triangle list per surface (0 bottom at y = 0, 1 top at y = gap): for every touching tip
+    the band between the undeformed surface and the dent's profile (saw_ros.core.body.dent, the
+    camera's), as deep as the tip's penetration.
+    """
+    half = body.dent_half_width(robot_params)
+    shapes = []
+    for surface, level, sign in ((0, 0.0, 1.0), (1, gap, -1.0)):
+        points = []
+        for x, y, s in zip(contacts['x'], contacts['y'], contacts['surface']):
+            depth = sign * (level - float(y))
+            if int(s) != surface or depth <= 0.0:
+                continue
+            xs, d = body.dent(float(x), depth, half)
+            z = SQUEEZE_Z
+            for a, b, da, db in zip(xs[:-1], xs[1:], d[:-1], d[1:]):
+                top_a, top_b = (a, level, z), (b, level, z)
+                low_a, low_b = (a, level - sign * da, z), (b, level - sign * db, z)
+                points += [top_a, top_b, low_b, top_a, low_b, low_a]
+        if points:
+            shapes.append(Shape('squeezed', surface, 'triangle_list', SQUEEZE_COLOUR,
+                                (1.0, 1.0, 1.0), points=tuple(points)))
+    return shapes
+
+
 def force_arrows(x: Sequence[float], y: Sequence[float], normal: Sequence[float],
                  tangential: Sequence[float], surface: Sequence[int],
                  slipping: Sequence[int], scale: float = FORCE_SCALE) -> List[Shape]:
@@ -179,12 +209,15 @@ def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float
     """
     Return every shape of the ground truth at one instant (what /saw/markers draws).
 
+    Surfaces with their squeezed bands under the touching tips, the robot, the contact forces.
+
     ``pose``: (x, y, pitch); ``phase``: the helix phase; ``contacts``: a structured array with the
     fields of /saw/contacts (x, y, normal_force, tangential_force, surface, slipping) or None.
     """
     x, y, theta = pose
     shapes = surfaces(gap, x) + robot(robot_params, gap, x, y, theta, phase)
     if contacts is not None and len(contacts):
+        shapes += squeezed(robot_params, gap, contacts)
         shapes += force_arrows(contacts['x'], contacts['y'], contacts['normal_force'],
                                contacts['tangential_force'], contacts['surface'],
                                contacts['slipping'], force_scale)

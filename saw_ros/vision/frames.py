@@ -178,7 +178,7 @@ class Renderer:
     def _silicone(self, img, x0, x1, down_tips, up_tips) -> None:
         """Both silicone layers, dented where tips press in (penetration > 0)."""
         t = self.options.silicone_thickness
-        width = 0.6 * self.robot.link           # half-width of a dent, m
+        width = body.dent_half_width(self.robot)   # half-width of a dent, m
         for tips, level, sign in ((down_tips, 0.0, 1.0), (up_tips, self.gap, -1.0)):
             pen = sign * (level - tips.imag)     # > 0 inside the surface
             pressed = pen > 0

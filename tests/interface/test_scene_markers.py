@@ -91,3 +91,26 @@ def test_force_arrows_and_tracking_estimate():
     (x0, y0, _), (x1, y1, _) = arrow.points
     assert math.atan2(y1 - y0, x1 - x0) == pytest.approx(0.1)
     assert scene_markers.tracking(None, None, None) == []
+
+
+def test_squeezed_bands_are_as_deep_and_wide_as_the_dents():
+    """Each touching tip's band: its penetration deep under the tip, the camera's dent width."""
+    from saw_ros.core import body
+    scenario, pose, phase, contacts = snapshot(1.3)
+    gap = scenario.conditions.gap
+    shapes = scene_markers.scene(scenario.robot, gap, pose, phase, contacts)
+    bands = {s.id: np.array(s.points).reshape(-1, 3) for s in by_namespace(shapes, 'squeezed')}
+    half = body.dent_half_width(scenario.robot)
+    pressed = 0
+    for c in contacts:
+        level, sign = (0.0, 1.0) if c['surface'] == 0 else (gap, -1.0)
+        depth = sign * (level - c['y'])
+        if depth <= 0:
+            continue
+        pressed += 1
+        points = bands[int(c['surface'])]
+        near = points[np.abs(points[:, 0] - c['x']) <= half + 1e-12]
+        # The deepest point of the band right under the tip is the tip itself.
+        assert np.max(sign * (level - near[:, 1])) == pytest.approx(depth, abs=1e-12)
+        assert np.all(sign * (level - points[:, 1]) >= -1e-12)       # never above the surface
+    assert pressed >= 2 and sum(len(p) for p in bands.values()) == pressed * 8 * 6
