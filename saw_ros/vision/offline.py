@@ -4,6 +4,10 @@ Tracking a video file offline: what ``saw-ros track`` and ``saw-ros campaign --v
 ``track_video`` feeds every frame of a file to one ``Tracker``; ``measure_scale`` finds the
 scale (px per metre) from the markers' known spacing with a first pass (the pair is picked out by
 the robot's line, size, colour and motion, the spacing in pixels not being known yet).
+
+Both take a video file's path or any frame source: an object with ``size`` (width, height) and
+``frames()`` yielding (index, t in s, bgr8 frame), such as a recording's camera stream
+(saw_ros.cli.commands.bag.BagFrames: raw or JPEG).
 """
 from __future__ import annotations
 
@@ -16,24 +20,44 @@ from saw_ros.vision.video import read_frames, video_info
 SCALE_FRAMES = 120      # ok frames the first pass measures the marker spacing on
 
 
-def track_video(path, camera_kw: dict, config: TrackerConfig, fps: float = 0.0,
+class VideoFile:
+    """A video file as a frame source: its size and its frames, at ``fps`` (0: the file's)."""
+
+    def __init__(self, path, fps: float = 0.0):
+        self.path, self.fps = path, fps
+
+    @property
+    def size(self):
+        return video_info(self.path)[2:]
+
+    def frames(self):
+        return read_frames(self.path, self.fps or None)
+
+    def __str__(self):
+        return str(self.path)
+
+
+def track_video(source, camera_kw: dict, config: TrackerConfig, fps: float = 0.0,
                 stop_after_ok: int = 0):
     """
     Return the FrameResults of every frame of a video (or until ``stop_after_ok`` ok frames).
 
-    The camera's size comes from the file.
+    ``source``: a video file's path, or a frame source (module docstring). The camera's size
+    comes from the source.
     """
-    _, _, width, height = video_info(path)
+    if not hasattr(source, 'frames'):
+        source = VideoFile(source, fps)
+    width, height = source.size
     tracker = Tracker(CameraModel(width=width, height=height, **camera_kw), config)
     results = []
-    for _, t, frame in read_frames(path, fps or None):
+    for _, t, frame in source.frames():
         results.append(tracker.update(frame, t))
         if stop_after_ok and tracker.counters.ok >= stop_after_ok:
             break
     return results, tracker
 
 
-def measure_scale(path, camera_kw: dict, config: TrackerConfig, spacing: float,
+def measure_scale(source, camera_kw: dict, config: TrackerConfig, spacing: float,
                   fps: float = 0.0):
     """
     (px per metre, frames, spread px) making the markers ``spacing`` m apart.
@@ -43,5 +67,5 @@ def measure_scale(path, camera_kw: dict, config: TrackerConfig, spacing: float,
     """
     blind = dataclasses.replace(config, marker_spacing=None, marker_diameter=None)
     kw = dict(camera_kw, scale=1000.0)          # a placeholder: pixels are what is measured
-    results, _ = track_video(path, kw, blind, fps, stop_after_ok=SCALE_FRAMES)
+    results, _ = track_video(source, kw, blind, fps, stop_after_ok=SCALE_FRAMES)
     return scale_from_spacing(results, spacing)

@@ -69,3 +69,14 @@ def test_the_bag_opens_in_a_viewer_and_gives_back_the_camera_video(graph_run, tm
     written, fps = bag_video(graph_run.bag_dir, tmp_path / 'camera.mp4')
     assert (written, fps) == (frames, 60.0)
     assert video_info(tmp_path / 'camera.mp4')[:2] == (60.0, frames)
+
+
+def test_the_tracker_reads_the_recorded_jpeg_stream_offline(graph_run, capsys):
+    """saw-ros track on the bag: every frame tracked, the speed the nodes measured live."""
+    from saw_ros.cli.main import main
+    assert main(['track', str(graph_run.bag_dir), '--px-per-m', '1200',
+                 '--slope-deg', str(SLOPE_DEG)]) == 0
+    out = capsys.readouterr().out
+    assert f'{graph_run.bag_dir}: 240 frames' in out and 'ok 240,' in out
+    steady = float(out.split('steady-state speed (last 4 s):')[1].split('cm/s')[0])
+    assert steady == pytest.approx(100 * graph_run.comparison['v_tracked_m_s'], rel=0.02)

@@ -139,43 +139,73 @@ def run(args):
     return 2
 
 
-def bag_video(bag, output, topic=None):
+class BagFrames:
     """
-    Write the camera frames of ``bag`` to the video ``output``; return (frames, fps).
+    The camera frames of a recording as a frame source (saw_ros.vision.offline).
 
-    The frames' rate comes from their stamps (the median interval), in the order recorded.
-    A recording without camera frames is a UserError that names the image topics it has.
+    ``topic``: an image topic (CompressedImage or Image); default the camera's compressed
+    stream if recorded, else its raw one. A recording without frames is a UserError that names
+    the image topics it has. Times are the frames' stamps, s.
     """
-    import numpy as np
 
-    from saw_ros.bag.reader import BagReader
-    from saw_ros.interface import topics
-    from saw_ros.vision import compressed
-    from saw_ros.vision.video import VideoWriter
-    reader = BagReader(bag)
-    recorded = reader.info()['topics']
-    candidates = [topic] if topic else [topics.IMAGE_COMPRESSED, topics.IMAGE]
-    chosen = next((t for t in candidates if t in recorded and recorded[t].count), None)
-    if chosen is None:
-        images = [t.name for t in recorded.values() if t.type.startswith('sensor_msgs/msg/')
-                  and 'Image' in t.type]
-        raise UserError(f'{bag} holds no frames on {" or ".join(candidates)}; image topics '
-                        f'recorded: {", ".join(images) or "none"}')
-    fps = _fps_of(reader, chosen)
-    frames = 0
-    writer = None
-    try:
-        for _, msg in reader.decoded_messages([chosen]):
+    def __init__(self, bag, topic=None):
+        from saw_ros.bag.reader import BagReader
+        from saw_ros.interface import topics
+        self.bag = bag
+        self.reader = BagReader(bag)
+        recorded = self.reader.info()['topics']
+        candidates = [topic] if topic else [topics.IMAGE_COMPRESSED, topics.IMAGE]
+        self.topic = next((t for t in candidates if t in recorded and recorded[t].count), None)
+        if self.topic is None:
+            images = [t.name for t in recorded.values()
+                      if t.type.startswith('sensor_msgs/msg/') and 'Image' in t.type]
+            raise UserError(f'{bag} holds no frames on {" or ".join(candidates)}; image topics '
+                            f'recorded: {", ".join(images) or "none"}')
+        self.count = recorded[self.topic].count
+
+    def frames(self):
+        import numpy as np
+
+        from saw_ros.vision import compressed
+        for k, (_, msg) in enumerate(self.reader.decoded_messages([self.topic])):
             if hasattr(msg, 'format'):
                 frame, _ = compressed.decode(msg.format, bytes(msg.data))
             else:
                 frame = np.frombuffer(bytes(msg.data), np.uint8).reshape(
                     msg.height, msg.width, -1)
                 if msg.encoding == 'rgb8':
-                    frame = frame[:, :, ::-1]
+                    frame = np.ascontiguousarray(frame[:, :, ::-1])
+            yield k, msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, frame
+
+    @property
+    def size(self):
+        _, _, frame = next(iter(self.frames()))
+        return frame.shape[1], frame.shape[0]
+
+    @property
+    def fps(self) -> float:
+        return _fps_of(self.reader, self.topic)
+
+    def __str__(self):
+        return f'{self.bag} ({self.topic})'
+
+
+def bag_video(bag, output, topic=None):
+    """
+    Write the camera frames of ``bag`` to the video ``output``; return (frames, fps).
+
+    The frames' rate comes from their stamps (the median interval), in the order recorded.
+    """
+    from saw_ros.vision.video import VideoWriter
+    source = BagFrames(bag, topic)
+    fps = source.fps
+    frames = 0
+    writer = None
+    try:
+        for _, _, frame in source.frames():
             if writer is None:
                 writer = VideoWriter(output, fps, frame.shape[1::-1])
-            writer.write(np.ascontiguousarray(frame))
+            writer.write(frame)
             frames += 1
     finally:
         if writer is not None:

@@ -12,8 +12,12 @@ over the last --steady-window seconds; --csv writes one row per frame (empty cel
 was measured: lost or ambiguous markers are never filled in). The tracker's options (colour
 window, region of interest, marker size, ...) are TrackerConfig's, listed below.
 
+VIDEO may also be a recording (a bag directory or its .mcap): its camera frames, JPEG
+(/saw/camera/image_raw/compressed) or raw, timed by their stamps.
+
 Example: saw-ros track run.mp4 --px-per-m 1200 --slope-deg 20 --csv run.csv
          saw-ros track robot.mp4 --marker-spacing-m 0.32 --roi 0,200,1280,560
+         saw-ros track bags/2026-11-23_16-33-09_demo --px-per-m 1200
 """
 from __future__ import annotations
 
@@ -80,7 +84,8 @@ def config_options():
 
 
 def add_arguments(p):
-    p.add_argument('video', help='video file (.mp4, .avi, ... anything OpenCV reads)')
+    p.add_argument('video', help='video file (.mp4, .avi, ... anything OpenCV reads), or a '
+                   "recording's directory or .mcap (its camera frames)")
     g = p.add_argument_group('scale and camera')
     g.add_argument('--px-per-m', type=float, default=None,
                    help='pixels per metre in the plane of motion (a ruler in the picture); '
@@ -120,6 +125,20 @@ def _cells(k, r):
             *xy(r.velocity_smoothed), '' if r.steady_speed is None else f'{r.steady_speed:.6f}']
 
 
+def _source(path, fps: float):
+    """Return the frames to track: a recording's camera stream, or the video file."""
+    from saw_ros.cli.commands.bag import BagFrames
+    from saw_ros.vision.offline import VideoFile
+    p = Path(path)
+    if p.suffix == '.mcap' or (p.is_dir() and (p / 'metadata.yaml').exists()):
+        from saw_ros.bag.reader import BagReadError
+        try:
+            return BagFrames(p)
+        except BagReadError as exc:
+            raise UserError(str(exc)) from None
+    return VideoFile(path, fps)
+
+
 def run(args):
     try:
         config = config_from_args(args)
@@ -136,13 +155,13 @@ def run(args):
                  'center_y': args.center_y, 'mirror': args.mirror}
     if args.dist_coeffs is not None:
         camera_kw.update(dist_coeffs=args.dist_coeffs, dist_matrix=args.camera_matrix)
+    source = _source(args.video, args.fps)
     try:
         if args.px_per_m is not None:
             scale = args.px_per_m
             scale_text = f'scale: {scale:g} px/m (--px-per-m)'
         else:
-            measured = measure_scale(args.video, camera_kw, config, config.marker_spacing,
-                                     args.fps)
+            measured = measure_scale(source, camera_kw, config, config.marker_spacing)
             if measured is None:
                 raise UserError('the marker spacing could not be measured: no frame with both '
                                 'markers told apart (try --roi around the track, or give '
@@ -151,8 +170,7 @@ def run(args):
             scale_text = (f'scale: {scale:.2f} px/m from the marker spacing '
                           f'{config.marker_spacing:g} m (--marker-spacing-m; median of {n} '
                           f'frames, spread +-{spread:.2f} px)')
-        results, tracker = track_video(args.video, dict(camera_kw, scale=scale), config,
-                                       args.fps)
+        results, tracker = track_video(source, dict(camera_kw, scale=scale), config)
     except (VideoError, ValueError) as exc:
         raise UserError(str(exc)) from exc
     if args.csv is not None:
