@@ -11,20 +11,30 @@ A command adds them with ``add_pool_arguments(parser)`` and gets its pool with
         with pool_from_args(args) as pool:
             simulate(scenarios, pool=pool)    # or pool.map(function, jobs)
 
-``--workers N`` (default 1, or the command's ``workers=``) forks N processes on this machine;
+``--workers N`` (default: the local cores, or the command's ``workers=``) forks N processes on
+this machine;
 ``--scheduler tcp://host:8786`` runs the batches on that Dask cluster instead (docs/cluster.md).
 A scheduler that does not answer, or a worker without saw_ros, is a ``UserError`` (one line).
 """
+import os
+from typing import Optional
+
 from saw_ros.analysis.cluster import CONNECT_TIMEOUT_S, pool_from
 from saw_ros.cli.errors import UserError
 from saw_ros.core.pool import Pool, PoolError
 
 
-def add_pool_arguments(parser, workers: int = 1) -> None:
-    """Add --workers, --scheduler and --scheduler-timeout to ``parser`` (one group)."""
+def add_pool_arguments(parser, workers: Optional[int] = None) -> None:
+    """
+    Add --workers, --scheduler and --scheduler-timeout to ``parser`` (one group).
+
+    ``workers``: the default number of local processes; None means every local core.
+    """
+    workers = workers or os.cpu_count() or 1
     g = parser.add_argument_group('where the sweeps run')
     g.add_argument('--workers', type=int, default=workers, metavar='N',
-                   help=f'local processes ({workers}); the batch is cut into that many parts')
+                   help=f'local processes (default {workers}: the local cores); the batch is cut '
+                   'into that many parts')
     g.add_argument('--scheduler', default=None, metavar='ADDRESS',
                    help='run the batches on the Dask cluster of this scheduler, e.g. '
                    'tcp://host:8786 (docs/cluster.md); --workers then does not apply')

@@ -85,6 +85,7 @@ class Data:
     timeseries: Optional[dict] = None                                 # Figures 7 and 8
     timings: Dict[str, float] = field(default_factory=dict)
     base: Scenario = field(default_factory=Scenario)                  # the wave's parameters
+    wave_batches: int = 1                                             # parts the pool ran
 
     def ar(self, **kw) -> float:
         return self.wave_ar[point(**kw)]
@@ -197,6 +198,7 @@ def compute(figures: Sequence[str] = FIGURES, quick: bool = False, progress=None
         on_total(len(points) * steps + ts_steps)
     start = time.perf_counter()
     data.wave_ar = run_waves(points, grid, progress, pool, base)
+    data.wave_batches = len(batches(points, pool.workers if pool is not None else 1))
     data.timings['wave_batch_s'] = time.perf_counter() - start
     if ts_steps:
         start = time.perf_counter()

@@ -51,7 +51,7 @@ def add_arguments(p):
                    '(paths relative to it); --slopes/--voltages/--reference do not apply')
     p.add_argument('--reference', type=Path, default=None,
                    help="CSV of measured speeds/ARs (default: the paper's stated points)")
-    add_pool_arguments(p, workers=2)
+    add_pool_arguments(p)
     p.add_argument('--quiet', action='store_true', help='no progress bar')
     add_scenario_arguments(p)
 
