@@ -134,7 +134,7 @@ def _missing(stamps: List[int], expected: List[int]) -> int:
 def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     """Return the loss figures of one run (see the module docstring)."""
     from saw_ros.bag import BagReader
-    from saw_ros.ros.cdr import stamp_ns
+    from saw_ros.ros.cdr import array_stamp_ns, stamp_ns
     streams = topics.step_topics()  # /clock + 5 streams
     n = int(round(duration / dt))
     frames = int(round(duration * FPS))
@@ -155,9 +155,8 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
                                        topics.TRACKING_STATUS, topics.TRACKING_POSE)
     arrays = (topics.MARKERS, topics.TRACKING_MARKERS)
     for m in reader.messages(wanted):
-        # A MarkerArray's first header (its DELETEALL's) comes after the array's length.
         stamps.setdefault(m.topic, []).append(
-            stamp_ns(m.data[:4] + m.data[8:]) if m.topic in arrays else stamp_ns(m.data))
+            array_stamp_ns(m.data) if m.topic in arrays else stamp_ns(m.data))
         log_times.setdefault(m.topic, []).append(m.log_time)
     for _m, msg in reader.decoded_messages([topics.TRACKING_STATUS]):
         values = {kv.key: kv.value for kv in msg.status[0].values}

@@ -42,6 +42,17 @@ def stamp_ns(data: bytes) -> int:
     return sec * NS_PER_S + nanosec
 
 
+def array_stamp_ns(data: bytes) -> int:
+    """
+    header.stamp in ns of the first element of a sequence of stamped messages.
+
+    (a visualization_msgs/MarkerArray: its first marker's header, after the sequence's length).
+    """
+    e = _prefix(data)
+    sec, nanosec = struct.unpack_from(e + 'iI', data, _HEADER + 4)
+    return sec * NS_PER_S + nanosec
+
+
 def pose_stamped_ns(data: bytes):
     """(stamp in ns, x, y, pitch about z) of a geometry_msgs/PoseStamped (stamp exact)."""
     e = _prefix(data)

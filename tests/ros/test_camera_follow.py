@@ -21,7 +21,7 @@ DURATION = 20.0
 STEADY = 2.0
 
 
-def test_following_camera_keeps_tracking_for_20_s(ros_context):
+def test_following_camera_keeps_tracking_for_20_s(ros_context, drive_camera):
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseStamped, TwistStamped
     from rclpy.executors import SingleThreadedExecutor
@@ -59,27 +59,7 @@ def test_following_camera_keeps_tracking_for_20_s(ros_context):
                         and vision.count_publishers('/saw/camera/image_raw') >= 1, 10.0,
                         spin=spin)
         sim = Simulator(Scenario())
-        joints = JointState()
-        joints.name = ['helix']
-        truth = {}
-
-        def publish():
-            t_ns = sim.steps * 1_000_000
-            q = sim.q[:, 0]
-            pub_pose.publish(conv.pose_msg(q[0], q[1], q[2], t_ns))
-            conv.time_msg(t_ns, joints.header.stamp)
-            joints.position = [float(sim.phase[0])]
-            pub_joints.publish(joints)
-            truth[sim.steps] = q[0]
-
-        publish()
-        while sim.t < DURATION - 1e-9:
-            for _ in range(50):
-                sim.step()
-                publish()
-            due = int(math.floor(sim.t * 60 + 1e-9)) + 1
-            assert wait_for(lambda: vision.results >= due, 20.0, spin=spin), \
-                (camera.frames, vision.results, due)
+        truth = drive_camera(sim, pub_pose, pub_joints, DURATION, vision, camera, spin)
         assert wait_for(lambda: len(got['status']) >= vision.results and got['steady'], 5.0,
                         spin=spin)
     finally:

@@ -37,6 +37,11 @@ def test_marker_array_cdr_is_what_rclpy_serializes():
     assert len(ours) == len(serialize_message(theirs))
 
 
+def test_a_marker_arrays_stamp_is_read_from_its_first_marker():
+    from saw_ros.ros.cdr import array_stamp_ns
+    assert array_stamp_ns(markers.marker_array_cdr([], 1_234_567_891)) == 1_234_567_891
+
+
 def test_decimator_starts_one_array_per_slot_of_stamps():
     decimator = markers.Decimator(60.0)
     due = [k for k in range(0, 101) if decimator.due(k * 1_000_000)]

@@ -48,7 +48,7 @@ def nodes(ros_context, tmp_path, request):
 
 
 @pytest.mark.parametrize('nodes', ['raw', 'compressed'], indirect=True)
-def test_camera_and_vision_nodes_track_the_simulation(nodes):
+def test_camera_and_vision_nodes_track_the_simulation(nodes, drive_camera):
     """The same tolerances through raw images and through JPEG (quality 90)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped
@@ -81,29 +81,8 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes):
                     spin=lambda t: executor.spin_once(timeout_sec=t))
 
     sim = Simulator(Scenario())
-    joints = JointState()
-    joints.name = ['helix']
-
-    def publish():
-        t_ns = sim.steps * 1_000_000
-        q = sim.q[:, 0]
-        pub_pose.publish(conv.pose_msg(q[0], q[1], q[2], t_ns))
-        conv.time_msg(t_ns, joints.header.stamp)
-        joints.position = [float(sim.phase[0])]
-        pub_joints.publish(joints)
-
-    publish()
-    truth = {}
-    while sim.t < DURATION - 1e-9:
-        for _ in range(50):
-            sim.step()
-            publish()
-            truth[sim.steps] = sim.q[0, 0]
-        # Frames due so far: every 1/60 s up to the published time; wait for all of them.
-        due = int(math.floor(sim.t * 60 + 1e-9)) + 1
-        assert wait_for(lambda: vision.results >= due, 20.0,
-                        spin=lambda t: executor.spin_once(timeout_sec=t)), \
-            (camera.frames, vision.results, due)
+    truth = drive_camera(sim, pub_pose, pub_joints, DURATION, vision, camera,
+                         lambda t: executor.spin_once(timeout_sec=t))
     wait_for(lambda: min(len(got[k]) for k in ('status', 'pose', 'front', 'image', 'jpeg',
                                                'markers'))
              >= vision.results and got['steady'], 5.0,

@@ -75,6 +75,13 @@ FROZEN = {
 }
 
 
+def _finite_non_negative(name: str, value, what: str) -> float:
+    """Return ``value`` as a float, or raise ParameterError: it must be a finite ``what``."""
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+        raise ParameterError(f'{name} = {value!r} is invalid: must be a finite {what}')
+    return float(value)
+
+
 class SimulatorNode(Node):
     """One SAW robot between two compliant surfaces, stepped in (scaled) real time."""
 
@@ -140,17 +147,13 @@ class SimulatorNode(Node):
     # -- parameters ----------------------------------------------------------------------------
     @staticmethod
     def _check_rtf(value) -> float:
-        if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise ParameterError(f'real_time_factor = {value!r} is invalid: must be a finite '
-                                 f'number >= 0 (0 = as fast as possible)')
-        return float(value)
+        return _finite_non_negative('real_time_factor', value,
+                                    'number >= 0 (0 = as fast as possible)')
 
     @staticmethod
     def _check_duration(value) -> float:
-        if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-            raise ParameterError(f'duration = {value!r} is invalid: must be a finite number of '
-                                 f'seconds >= 0 (0 = run until stopped)')
-        return float(value)
+        return _finite_non_negative('duration', value,
+                                    'number of seconds >= 0 (0 = run until stopped)')
 
     def _validate_own(self, parameters) -> SetParametersResult:
         for p in parameters:
