@@ -39,7 +39,7 @@ from saw_ros.ros.params import declare_spec, ScenarioParameters, yaml_text
 from saw_ros.ros.qos import image_publisher_qos, INPUT_DEPTH, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
-from saw_ros.vision import compressed
+from saw_ros.vision import compressed, one_opencv_thread
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.frames import pose_between, Renderer, RenderOptions, RobotPose, StampedSeries
 from saw_ros.vision.video import VideoError, VideoWriter
@@ -372,6 +372,7 @@ class CameraNode(Node):
 
 
 def main(args=None) -> int:
+    one_opencv_thread()
     return run_node(CameraNode, args=args, events=True)
 
 

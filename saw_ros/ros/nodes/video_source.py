@@ -40,6 +40,7 @@ from saw_ros.ros import cdr  # noqa: E402
 from saw_ros.ros import conversions as conv  # noqa: E402
 from saw_ros.ros.qos import CLOCK_QOS, image_publisher_qos  # noqa: E402
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_node  # noqa: E402
+from saw_ros.vision import one_opencv_thread  # noqa: E402
 from saw_ros.vision.video import VideoError  # noqa: E402
 from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
 
@@ -283,6 +284,7 @@ class VideoSourceNode(Node):
 
 
 def main(args=None) -> int:
+    one_opencv_thread()
     return run_node(VideoSourceNode, args=args,
                     spin=lambda node: spin_node(node, until=lambda: node.done))
 

@@ -44,7 +44,7 @@ from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, publisher_profile, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
-from saw_ros.vision import compressed
+from saw_ros.vision import compressed, one_opencv_thread
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
@@ -281,6 +281,7 @@ class VisionNode(Node):
 
 
 def main(args=None) -> int:
+    one_opencv_thread()
     return run_node(VisionNode, args=args, events=True)
 
 
