@@ -11,7 +11,7 @@ show the same thing.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import List, Optional, Sequence, Tuple
 
@@ -46,7 +46,7 @@ ESTIMATE_Z = DEPTH / 2 + 0.008   # m, in front of the body and the true markers
 ESTIMATE_LENGTH = 0.1       # m, the arrow of the tracked pose
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Shape:
     """
     One marker: kind 'cube', 'sphere', 'arrow', 'sphere_list' or 'triangle_list'.
@@ -54,7 +54,9 @@ class Shape:
     A cube or sphere sits at ``position``, turned by ``yaw`` about z (the pitch in the picture
     plane), with its full extents ``scale``. An arrow, a sphere list and a triangle list are
     given by ``points`` (an arrow: start, end; its ``scale``: shaft diameter, head diameter, head
-    length, as visualization_msgs wants it; a triangle list: three points a triangle).
+    length, as visualization_msgs wants it; a triangle list: three points a triangle), an
+    (N, 3) float array of x, y, z (N x 3 numbers from numpy, not N Python tuples: the simulator
+    builds the robot 60 times a simulated second). Not comparable with ``==`` (arrays).
     """
 
     namespace: str
@@ -64,7 +66,7 @@ class Shape:
     scale: Point
     position: Point = (0.0, 0.0, 0.0)
     yaw: float = 0.0
-    points: Tuple[Point, ...] = ()
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 def surfaces(gap: float, centre_x: float) -> List[Shape]:
@@ -81,6 +83,14 @@ def _to_surface(points, x: float, y: float, theta: float) -> np.ndarray:
 
 def _xyz(p: complex) -> Point:
     return (float(p.real), float(p.imag), 0.0)
+
+
+def _points(xy, z: float = 0.0) -> np.ndarray:
+    """Return complex x + i y as an (N, 3) array of x, y, z."""
+    xy = np.asarray(xy).ravel()
+    out = np.empty((len(xy), 3))
+    out[:, 0], out[:, 1], out[:, 2] = xy.real, xy.imag, z
+    return out
 
 
 def _cube(namespace: str, id_: int, colour: Colour, corners, x: float, y: float, theta: float,
@@ -124,10 +134,10 @@ def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: floa
     # Two triangles per plate (corners 0 1 2 and 0 2 3).
     triangles = plates[:, [0, 1, 2, 0, 2, 3]].ravel()
     shapes.append(Shape('wave_links', 0, 'triangle_list', LINK_COLOUR, (1.0, 1.0, 1.0),
-                        points=tuple(_xyz(p) for p in triangles)))
+                        points=_points(triangles)))
     tips = _to_surface(np.concatenate([g.up_tips, g.down_tips]), x, y, theta)
     shapes.append(Shape('tips', 0, 'sphere_list', TIP_COLOUR, (TIP_DIAMETER,) * 3,
-                        points=tuple(_xyz(p) for p in tips)))
+                        points=_points(tips)))
     return shapes
 
 
@@ -142,20 +152,19 @@ def squeezed(robot_params: RobotParams, gap: float, contacts) -> List[Shape]:
     half = body.dent_half_width(robot_params)
     shapes = []
     for surface, level, sign in ((0, 0.0, 1.0), (1, gap, -1.0)):
-        points = []
-        for x, y, s in zip(contacts['x'], contacts['y'], contacts['surface']):
-            depth = sign * (level - float(y))
-            if int(s) != surface or depth <= 0.0:
-                continue
-            xs, d = body.dent(float(x), depth, half)
-            z = SQUEEZE_Z
-            for a, b, da, db in zip(xs[:-1], xs[1:], d[:-1], d[1:]):
-                top_a, top_b = (a, level, z), (b, level, z)
-                low_a, low_b = (a, level - sign * da, z), (b, level - sign * db, z)
-                points += [top_a, top_b, low_b, top_a, low_b, low_a]
-        if points:
-            shapes.append(Shape('squeezed', surface, 'triangle_list', SQUEEZE_COLOUR,
-                                (1.0, 1.0, 1.0), points=tuple(points)))
+        depth = sign * (level - np.asarray(contacts['y'], float))
+        pressed = (np.asarray(contacts['surface']) == surface) & (depth > 0.0)
+        if not pressed.any():
+            continue
+        xs, d = body.dents(np.asarray(contacts['x'], float)[pressed], depth[pressed], half)
+        # Each strip between two profile points: two triangles, (top a, top b, low b) and
+        # (top a, low b, low a); top on the undeformed surface, low on the dent.
+        a, b = xs[:, :-1], xs[:, 1:]
+        top_a, top_b = a + 1j * level, b + 1j * level
+        low_a, low_b = a + 1j * (level - sign * d[:, :-1]), b + 1j * (level - sign * d[:, 1:])
+        corners = np.stack([top_a, top_b, low_b, top_a, low_b, low_a], axis=-1)
+        shapes.append(Shape('squeezed', surface, 'triangle_list', SQUEEZE_COLOUR,
+                            (1.0, 1.0, 1.0), points=_points(corners, SQUEEZE_Z)))
     return shapes
 
 
@@ -177,7 +186,7 @@ def force_arrows(x: Sequence[float], y: Sequence[float], normal: Sequence[float]
                0.0)
         colour = SLIP_COLOUR if int(slipping[i]) else STICK_COLOUR
         shapes.append(Shape('contact_forces', i, 'arrow', colour, (0.002, 0.004, 0.004),
-                            points=(start, end)))
+                            points=np.array((start, end))))
     return shapes
 
 
@@ -200,7 +209,7 @@ def tracking(front: Optional[Point], back: Optional[Point],
         end = (px + ESTIMATE_LENGTH * math.cos(pitch), py + ESTIMATE_LENGTH * math.sin(pitch),
                ESTIMATE_Z)
         shapes.append(Shape('tracking_pose', 0, 'arrow', TRACKING_COLOUR, (0.003, 0.006, 0.01),
-                            points=((float(px), float(py), ESTIMATE_Z), end)))
+                            points=np.array(((float(px), float(py), ESTIMATE_Z), end))))
     return shapes
 
 

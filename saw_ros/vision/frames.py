@@ -303,15 +303,16 @@ class Renderer:
                                      dtype=cv2.CV_8U)
             else:
                 frame = cv2.convertScaleAbs(self._accum, alpha=brightness / n)
+        elif self._gradient is None and brightness == 1.0:
+            # Drawn straight into the new frame: a 1280x720 copy less per frame.
+            frame = self.draw(pose, np.empty_like(self._frame), hidden, t_frame)
         else:
             self.draw(pose, self._frame, hidden, t_frame)
             if self._gradient is not None:
                 frame = cv2.multiply(self._frame, self._gradient, scale=brightness,
                                      dtype=cv2.CV_8U)
-            elif brightness != 1.0:
-                frame = cv2.convertScaleAbs(self._frame, alpha=brightness)
             else:
-                frame = self._frame.copy()
+                frame = cv2.convertScaleAbs(self._frame, alpha=brightness)
         if self._lens is not None:
             frame = cv2.remap(frame, self._lens[0], self._lens[1], cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REPLICATE)

@@ -41,6 +41,7 @@ import threading
 import time
 from typing import Dict, List
 
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -359,7 +360,12 @@ class Recorder(Node):
                     taken += 1
             self.received += taken
 
-        holder['sub'] = node.create_subscription(msg_type, name, on_message, qos, raw=True)
+        # No QoS event handlers (rclpy's default: incompatible QoS and type, two per
+        # subscription): the QoS is the publishers' own, and each handler is one more Python
+        # object in every executor round; with them, 19 subscriptions cost 0.085 of a core idle.
+        holder['sub'] = node.create_subscription(
+            msg_type, name, on_message, qos, raw=True,
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         holder['type'] = msg_type
         return holder
 
