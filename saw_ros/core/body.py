@@ -70,19 +70,13 @@ def dent_half_width(robot: RobotParams) -> float:
     return DENT_HALF_WIDTH * robot.link
 
 
-def dent(x: float, depth: float, half_width: float, samples: int = 9):
-    """
-    Return a tip's dent in a surface as (abscissae, depths): a cos^2 bump, ``depth`` deep.
-
-    Centred on the tip's x, zero at +-``half_width``: the squeezed band the camera and the
-    viewers draw where a tip presses in.
-    """
-    xs, d = dents(np.array([x]), np.array([depth]), half_width, samples)
-    return xs[0], d[0]
-
-
 def dents(x: np.ndarray, depth: np.ndarray, half_width: float, samples: int = 9):
-    """Return ``dent`` of each of several tips (x and depth arrays) as two (tips, samples) rows."""
+    """
+    Return each tip's dent in a surface as (abscissae, depths), two (tips, samples) arrays.
+
+    A cos^2 bump ``depth`` deep, centred on the tip's x, zero at +-``half_width``: the squeezed
+    band the camera and the viewers draw where a tip presses in.
+    """
     x = np.asarray(x, float)[:, None]
     xs = np.linspace(x[:, 0] - half_width, x[:, 0] + half_width, samples, axis=1)
     return xs, np.asarray(depth, float)[:, None] * np.cos(0.5 * np.pi * (xs - x) / half_width) ** 2

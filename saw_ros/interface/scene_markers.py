@@ -146,7 +146,7 @@ def squeezed(robot_params: RobotParams, gap: float, contacts) -> List[Shape]:
     Return the surfaces' squeezed bands: where each touching tip presses in, its dent.
 
     One triangle list per surface (0 bottom at y = 0, 1 top at y = gap): for every touching tip
-    the band between the undeformed surface and the dent's profile (saw_ros.core.body.dent, the
+    the band between the undeformed surface and the dent's profile (saw_ros.core.body.dents, the
     camera's), as deep as the tip's penetration.
     """
     half = body.dent_half_width(robot_params)
