@@ -155,6 +155,7 @@ def _frame_block(frame: str, then_align: int) -> bytes:
 _CLOCK = struct.Struct('<4siI')
 _POSE = struct.Struct(f'<4siI{len(_frame_block(SURFACE_FRAME, 8))}s7d')
 _TWIST = struct.Struct(f'<4siI{len(_frame_block(SURFACE_FRAME, 8))}s6d')
+_POINT = struct.Struct(f'<4siI{len(_frame_block(SURFACE_FRAME, 8))}s3d')
 _WRENCH = struct.Struct(f'<4siI{len(_frame_block(BODY_FRAME, 8))}s6d')
 _SURFACE_BLOCK = _frame_block(SURFACE_FRAME, 8)
 _BODY_BLOCK = _frame_block(BODY_FRAME, 8)
@@ -177,6 +178,11 @@ def pose_cdr(x: float, y: float, theta: float, nanoseconds: int) -> bytes:
 def twist_cdr(vx: float, vy: float, w: float, nanoseconds: int) -> bytes:
     return _TWIST.pack(ENCAPSULATION, *_split_ns(nanoseconds), _SURFACE_BLOCK, vx, vy, 0.0,
                        0.0, 0.0, w)
+
+
+def point_cdr(x: float, y: float, nanoseconds: int) -> bytes:
+    """geometry_msgs/PointStamped (x, y, 0) in ``surface``."""
+    return _POINT.pack(ENCAPSULATION, *_split_ns(nanoseconds), _SURFACE_BLOCK, x, y, 0.0)
 
 
 def wrench_cdr(fx: float, fy: float, mz: float, nanoseconds: int) -> bytes:

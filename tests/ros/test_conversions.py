@@ -46,6 +46,15 @@ def contacts_msg(points: np.ndarray, nanoseconds: int,
     return msg
 
 
+def point_msg(x: float, y: float, ns: int):
+    from geometry_msgs.msg import PointStamped
+    msg = PointStamped()
+    conv.time_msg(ns, msg.header.stamp)
+    msg.header.frame_id = conv.SURFACE_FRAME
+    msg.point.x, msg.point.y = x, y
+    return msg
+
+
 def wrench_msg(fx: float, fy: float, mz: float, nanoseconds: int,
                out: Optional[WrenchStamped] = None) -> WrenchStamped:
     """Net contact force (fx, fy, 0) and moment (0, 0, mz) on the robot, in ``base_link``."""
@@ -208,7 +217,7 @@ def test_cdr_encoders_match_rclpy_serialization():
     prefix where ours is not padding (zero), and check that the bytes deserialize back to the same
     message.
     """
-    from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
+    from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped, WrenchStamped
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
 
@@ -221,6 +230,7 @@ def test_cdr_encoders_match_rclpy_serialization():
         (conv.clock_cdr(ns), clock_msg(ns), Clock),
         (conv.pose_cdr(0.1, 0.02, -0.4, ns), conv.pose_msg(0.1, 0.02, -0.4, ns), PoseStamped),
         (conv.twist_cdr(0.1, -0.2, 0.3, ns), conv.twist_msg(0.1, -0.2, 0.3, ns), TwistStamped),
+        (conv.point_cdr(0.25, -0.5, ns), point_msg(0.25, -0.5, ns), PointStamped),
         (conv.wrench_cdr(1.5, -2.5, 0.01, ns), wrench_msg(1.5, -2.5, 0.01, ns),
          WrenchStamped),
         (conv.ContactsCdr()(points, ns), contacts_msg(points, ns), PointCloud2),
