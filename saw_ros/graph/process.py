@@ -67,12 +67,12 @@ def isolated_ros_env(domain_id: Optional[int] = None, base: Optional[Dict[str, s
     env.pop('ROS_LOCALHOST_ONLY', None)
     env['ROS_DOMAIN_ID'] = str(domain_id if domain_id is not None else reserve_domain())
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    # Faster discovery (msg_config/fastdds_discovery.xml): with Fast DDS's defaults a participant
-    # that misses the initial announcements is found up to 3 s late, and loses what was published
-    # meanwhile. A user's own profile wins.
+    # msg_config/fastdds.xml: faster discovery (with Fast DDS's defaults a participant that
+    # misses the initial announcements is found up to 3 s late, and loses what was published
+    # meanwhile) and deeper shared-memory queues. A user's own profile wins.
     if not (env.get('FASTRTPS_DEFAULT_PROFILES_FILE') or env.get('FASTDDS_DEFAULT_PROFILES_FILE')):
         from saw_ros.interface.config import config_path
-        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(config_path('fastdds_discovery.xml'))
+        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(config_path('fastdds.xml'))
     env.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
     env['PYTHONUNBUFFERED'] = '1'
     return env
