@@ -84,7 +84,10 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     start = time.monotonic()
 
     def launch(name, **params):
-        p = ManagedProcess(name, node_command(name, params=params), env, logs)
+        # The simulator sets the pace; the others consume its messages in batches
+        # (process.batch_policy: their wake-ups would preempt it).
+        p = ManagedProcess(name, node_command(name, params=params), env, logs,
+                           batch=name != 'simulator')
         nodes.append(p)
         return p
 
