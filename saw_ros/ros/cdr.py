@@ -144,6 +144,22 @@ class ImageView:
 ENCAPSULATION = b'\x00\x01\x00\x00'   # CDR, little endian
 
 
+def stamp_bytes(nanoseconds: int) -> bytes:
+    """Return a builtin_interfaces/Time (sec, nanosec) as little-endian CDR."""
+    return _STAMP_LE.pack(*divmod(int(nanoseconds), NS_PER_S))
+
+
+def string_bytes(text: str) -> bytes:
+    """Return a CDR string without its alignment: u32 length (with the NUL), characters, NUL."""
+    data = text.encode() + b'\0'
+    return _U32_LE.pack(len(data)) + data
+
+
+def restamp(data: bytes, nanoseconds: int) -> bytes:
+    """Return a little-endian serialized message that starts with a Header, stamped anew."""
+    return data[:_HEADER] + stamp_bytes(nanoseconds) + data[_HEADER + 8:]
+
+
 class CdrWriter:
     """
     Minimal XCDR1 little-endian writer for the constant parts of encoded messages.
@@ -169,8 +185,7 @@ class CdrWriter:
 
     def string(self, text: str) -> 'CdrWriter':
         """u32 length (with the NUL), the characters, the NUL."""
-        data = text.encode() + b'\0'
-        self.u32(len(data)).buf += data
+        self.align(4).buf += string_bytes(text)
         return self
 
     @property
@@ -197,8 +212,7 @@ class ImageCdr:
         view = memoryview(pixels).cast('B')
         if view.nbytes != self._size:
             raise ValueError(f'{view.nbytes} pixel bytes, expected {self._size}')
-        sec, nanosec = divmod(nanoseconds, NS_PER_S)
-        return b''.join((ENCAPSULATION, _STAMP_LE.pack(sec, nanosec), self._head,
+        return b''.join((ENCAPSULATION, stamp_bytes(nanoseconds), self._head,
                          _U32_LE.pack(self._size), view))
 
 
@@ -216,6 +230,5 @@ class CompressedImageCdr:
         self._head = bytes(w.buf)
 
     def __call__(self, data: bytes, nanoseconds: int) -> bytes:
-        sec, nanosec = divmod(nanoseconds, NS_PER_S)
-        return b''.join((ENCAPSULATION, _STAMP_LE.pack(sec, nanosec), self._head,
+        return b''.join((ENCAPSULATION, stamp_bytes(nanoseconds), self._head,
                          _U32_LE.pack(len(data)), data))

@@ -19,7 +19,7 @@ from geometry_msgs.msg import Point
 import numpy as np
 from saw_ros.interface import scene_markers
 from saw_ros.ros import conversions as conv
-from saw_ros.ros.cdr import CdrWriter, ENCAPSULATION, NS_PER_S
+from saw_ros.ros.cdr import CdrWriter, ENCAPSULATION, NS_PER_S, stamp_bytes, string_bytes
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -60,12 +60,6 @@ def marker_array(shapes: Iterable[scene_markers.Shape], stamp_ns: int,
     return MarkerArray(markers=[clear] + [marker_of(s, stamp, frame) for s in shapes])
 
 
-def _cdr_string(text: str) -> bytes:
-    """Return a CDR string without its alignment: u32 length (with the NUL), characters, NUL."""
-    data = text.encode() + b'\0'
-    return struct.pack('<I', len(data)) + data
-
-
 def _tail() -> bytes:
     """
     Return what follows a Marker's points, all empty.
@@ -86,7 +80,6 @@ _TAIL = _tail()
 _IDS = struct.Struct('<iii')           # id, type, action
 _POSE_SCALE = struct.Struct('<10d')    # position, orientation (x y z w), scale
 _COLOUR_LIFETIME = struct.Struct('<4fiIB')   # colour, lifetime 0 s 0 ns (forever), unlocked
-_U32 = struct.Struct('<I')
 _PAD = (b'', b'\0', b'\0' * 2, b'\0' * 3, b'\0' * 4, b'\0' * 5, b'\0' * 6, b'\0' * 7)
 
 
@@ -101,9 +94,8 @@ def marker_array_cdr(shapes: Iterable[scene_markers.Shape], stamp_ns: int,
     byte for byte against rclpy's serialization.
     """
     shapes = list(shapes)
-    sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
-    header = struct.pack('<iI', sec, nanosec) + _cdr_string(frame)
-    parts = [_U32.pack(len(shapes) + 1)]
+    header = stamp_bytes(stamp_ns) + string_bytes(frame)
+    parts = [struct.pack('<I', len(shapes) + 1)]
     size = 4                              # bytes so far, after the encapsulation
 
     def add(piece: bytes) -> None:
@@ -121,7 +113,7 @@ def marker_array_cdr(shapes: Iterable[scene_markers.Shape], stamp_ns: int,
                 s.colour, s.points) for s in shapes]):
         align(4)
         add(header)
-        add(_cdr_string(namespace))
+        add(string_bytes(namespace))
         align(4)
         add(_IDS.pack(id_, kind, action))
         align(8)
@@ -130,7 +122,7 @@ def marker_array_cdr(shapes: Iterable[scene_markers.Shape], stamp_ns: int,
         add(_COLOUR_LIFETIME.pack(*colour, 0, 0, 0))
         points = np.asarray(points, '<f8').reshape(-1, 3)
         align(4)
-        add(_U32.pack(len(points)))
+        add(struct.pack('<I', len(points)))
         if len(points):
             align(8)
             add(points.tobytes())

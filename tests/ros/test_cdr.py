@@ -104,3 +104,14 @@ def test_image_view_is_zero_copy():
     arr = np.frombuffer(view.data, np.uint8)
     data[-1] ^= 0xFF
     assert arr[-1] == pixels.ravel()[-1] ^ 0xFF
+
+
+def test_restamp_gives_the_message_serialized_with_the_new_stamp():
+    from sensor_msgs.msg import CameraInfo
+    info = CameraInfo(width=1280, height=720, k=[900.0, 0, 640, 0, 900, 360, 0, 0, 1])
+    info.header.frame_id = 'saw_camera'
+    conv.time_msg(1_000_000_000, info.header.stamp)
+    before = serialize_message(info)
+    conv.time_msg(12_345_678_901, info.header.stamp)
+    assert cdr.restamp(before, 12_345_678_901) == serialize_message(info)
+    assert cdr.stamp_ns(cdr.restamp(before, 16_666_667)) == 16_666_667

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 import queue
-import struct
 import sys
 import threading
 import time
@@ -337,9 +336,7 @@ class CameraNode(Node):
         """
         if info is not self._info_source:
             self._info_source, self._info_serialized = info, serialize_message(info)
-        sec, nanosec = divmod(int(t_ns), NS_PER_S)
-        blob = self._info_serialized
-        return blob[:4] + struct.pack('<iI', sec, nanosec) + blob[12:]
+        return cdr.restamp(self._info_serialized, t_ns)
 
     def _publish(self, frame, t_ns: int, info: CameraInfo = None) -> None:
         """
