@@ -260,9 +260,14 @@ class Recorder(Node):
         # Large messages (camera images) arrive on a DDS participant of their own: their bursts
         # of fragments then never delay the receipt and acknowledgement of the 1 kHz streams,
         # whose publishers keep only a short history (measured: a shared participant lost
-        # 1-5 % of each 1 kHz stream while 60 fps 1280x720 images were recorded).
-        self._large = None
-        self._large_thread = None
+        # 1-5 % of each 1 kHz stream while 60 fps 1280x720 images were recorded). Made now, not
+        # when the first image topic appears: a new participant took 0.65-0.8 s to match the
+        # camera on the busy 2-core machine, and the main job's bag lacked the first frames
+        # (the camera's writer keeps 1 s of them for a late reader).
+        self._large = self._large_participant()
+        self._large_thread = threading.Thread(target=self._spin_large, name='large-spin',
+                                              daemon=True)
+        self._large_thread.start()
         self.get_logger().info(
             f'recording to {self.bag.directory} '
             f'({", ".join(self._topics + [p + "*" for p in self._prefixes])}'
@@ -296,7 +301,7 @@ class Recorder(Node):
                 self._subs[name] = None
                 continue
             self._queue.put(('topic', name, type_name, [offered_profile(q) for q in offers]))
-            node = self._large_node() if type_name in LARGE_TYPES else self
+            node = self._large[1] if type_name in LARGE_TYPES else self
             self._subs[name] = self._subscribe(node, name, msg_type,
                                                request_qos(offers, self._depth))
             self._unmatched[name] = (type_name, time.monotonic())
@@ -316,21 +321,18 @@ class Recorder(Node):
             self.get_logger().info(f'recording {name} [{type_name}] '
                                    f'(matched after {time.monotonic() - since:.2f} s)')
 
-    def _large_node(self):
-        if self._large is None:
-            import rclpy
-            from rclpy.context import Context
-            from rclpy.executors import SingleThreadedExecutor
-            context = Context()
-            rclpy.init(context=context)
-            node = Node('recorder_large', context=context)
-            executor = SingleThreadedExecutor(context=context)
-            executor.add_node(node)
-            self._large = (context, node, executor)
-            self._large_thread = threading.Thread(target=self._spin_large, name='large-spin',
-                                                  daemon=True)
-            self._large_thread.start()
-        return self._large[1]
+    @staticmethod
+    def _large_participant():
+        """(context, node, executor) of the images' own participant."""
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        context = Context()
+        rclpy.init(context=context)
+        node = Node('recorder_large', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        return context, node, executor
 
     def _spin_large(self):
         context, _, executor = self._large
@@ -415,8 +417,7 @@ class Recorder(Node):
         if self._closed:
             return
         self._closed = True
-        if self._large_thread is not None:
-            self._large_thread.join(2.0)
+        self._large_thread.join(2.0)
         self._drain()
         self._queue.put(_STOP)
         self._writer.join()
@@ -443,11 +444,10 @@ class Recorder(Node):
                 print(f'[recorder] WARNING: {warning}', file=sys.stderr, flush=True)
         if self._write_error is not None:
             self.get_logger().error(f'writing failed: {self._write_error}')
-        if self._large is not None:
-            import rclpy
-            self._large[2].shutdown(0.5)
-            self._large[1].destroy_node()
-            rclpy.try_shutdown(context=self._large[0])
+        import rclpy
+        self._large[2].shutdown(0.5)
+        self._large[1].destroy_node()
+        rclpy.try_shutdown(context=self._large[0])
 
     def _counts(self):
         meta = self.bag.metadata()
