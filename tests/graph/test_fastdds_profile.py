@@ -11,11 +11,11 @@ import os
 import sys
 
 import pytest
-from saw_ros.graph.process import ManagedProcess, isolated_ros_env, wait_for
+from saw_ros.graph.process import isolated_ros_env, ManagedProcess, wait_for
 
 COUNT = 1000
 
-SUBSCRIBER = f'''
+SUBSCRIBER = f"""
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -27,9 +27,9 @@ node.create_subscription(Clock, '/profile_check', got.append,
 while rclpy.ok() and len(got) < {COUNT}:
     rclpy.spin_once(node, timeout_sec=0.1)
 print(len(got))
-'''
+"""
 
-PUBLISHER = f'''
+PUBLISHER = f"""
 import os, time
 import rclpy
 import rclpy.duration
@@ -60,13 +60,13 @@ for k in range({COUNT}):
     time.sleep(0.001)
 print((event_thread_wakeups() - before) / {COUNT})
 pub.wait_for_all_acked(rclpy.duration.Duration(seconds=10))
-'''
+"""
 
-WRITER_DEFAULTS = '''<?xml version="1.0" encoding="UTF-8" ?>
+WRITER_DEFAULTS = """<?xml version="1.0" encoding="UTF-8" ?>
 <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
   <participant profile_name="plain" is_default_profile="true"><rtps/></participant>
 </profiles>
-'''
+"""
 
 
 @pytest.mark.parametrize('profile', ['ours', 'fast_dds_defaults'])
