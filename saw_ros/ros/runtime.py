@@ -91,6 +91,15 @@ def _on_stop_signal(signum, frame) -> None:
         raise KeyboardInterrupt
 
 
+def take_stop_signals() -> dict:
+    """
+    Make SIGINT and SIGTERM request a stop (``_STOP``) from now on; return the handlers replaced.
+
+    A request made before ``run_node`` starts is kept by it (it then starts nothing).
+    """
+    return {sig: signal.signal(sig, _on_stop_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
 def spin_node(node, until: Optional[Callable[[], bool]] = None, executor=None,
               pause: float = 0.0) -> None:
     """
@@ -158,13 +167,17 @@ def run_node(make_node: Callable[[], 'object'], args=None,
 
     # No rclpy signal handlers (they would shut the context down under a running callback):
     # ours only request the stop, from before rcl starts (checked once the node is built).
-    _STOP.requested, _STOP.interrupt = False, False
+    previous = take_stop_signals()
+    # A request made while the executable was starting stands (saw_ros.ros.nodes took the
+    # signals then); one left by an earlier run in this process (tests) does not.
+    _STOP.requested = _STOP.requested and all(h is _on_stop_signal for h in previous.values())
+    _STOP.interrupt = False
     keep_freed_memory()
-    previous = {sig: signal.signal(sig, _on_stop_signal)
-                for sig in (signal.SIGINT, signal.SIGTERM)}
     node = None
     code = 0
     try:
+        if _STOP.requested:
+            return code               # stopped before it started: nothing to finish
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         node = make_node()
         if _STOP.requested:

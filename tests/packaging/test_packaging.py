@@ -91,6 +91,11 @@ def test_setup_installs_config_and_ament_marker_for_colcon():
     assert 'simulator' in console_scripts()
 
 
+def test_the_console_scripts_are_the_executables_that_take_stop_signals_while_starting():
+    from saw_ros.ros.nodes import EXECUTABLES
+    assert tuple(console_scripts()) == EXECUTABLES
+
+
 def test_setup_declares_pytest_so_colcon_test_runs_the_suite():
     """
     Check that setup.py names pytest as a test requirement.
