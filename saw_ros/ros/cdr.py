@@ -155,9 +155,14 @@ def string_bytes(text: str) -> bytes:
     return _U32_LE.pack(len(data)) + data
 
 
+def after_stamp(data: bytes) -> bytes:
+    """Return the bytes of a serialized message that starts with a Header, after its stamp."""
+    return data[_HEADER + 8:]
+
+
 def restamp(data: bytes, nanoseconds: int) -> bytes:
     """Return a little-endian serialized message that starts with a Header, stamped anew."""
-    return data[:_HEADER] + stamp_bytes(nanoseconds) + data[_HEADER + 8:]
+    return data[:_HEADER] + stamp_bytes(nanoseconds) + after_stamp(data)
 
 
 class CdrWriter:

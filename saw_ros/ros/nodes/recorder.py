@@ -41,8 +41,11 @@ import threading
 import time
 from typing import Dict, List
 
+import rclpy
+from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from saw_ros.bag.schema import check_definitions, UnknownMessageType
@@ -324,9 +327,6 @@ class Recorder(Node):
     @staticmethod
     def _large_participant():
         """(context, node, executor) of the images' own participant."""
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
         context = Context()
         rclpy.init(context=context)
         node = Node('recorder_large', context=context)
@@ -444,7 +444,6 @@ class Recorder(Node):
                 print(f'[recorder] WARNING: {warning}', file=sys.stderr, flush=True)
         if self._write_error is not None:
             self.get_logger().error(f'writing failed: {self._write_error}')
-        import rclpy
         self._large[2].shutdown(0.5)
         self._large[1].destroy_node()
         rclpy.try_shutdown(context=self._large[0])
@@ -463,7 +462,6 @@ ROUND_PAUSE = 0.003
 
 
 def _spin(node) -> None:
-    from rclpy.executors import SingleThreadedExecutor
     spin_node(node, executor=SingleThreadedExecutor(context=node.context), pause=ROUND_PAUSE)
 
 

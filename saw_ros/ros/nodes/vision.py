@@ -183,7 +183,7 @@ class VisionNode(Node):
 
         (one comes with every frame, and rclpy's conversion of its arrays cost ~0.2 ms).
         """
-        after_stamp = data[12:]
+        after_stamp = cdr.after_stamp(data)
         if after_stamp == self._info_unchanged:
             return
         try:
