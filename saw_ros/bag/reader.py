@@ -277,6 +277,23 @@ def _open_chunk(body) -> bytes:
     return records
 
 
+class _Scan:
+    """What the scan of one file's data section carries from one record to the next."""
+
+    def __init__(self, path: str, size: int, summary: _Summary):
+        self.path, self.size, self.summary = path, size, summary
+        self.schemas: Dict[int, Schema] = dict(summary.schemas)
+        self.channels: Dict[int, Channel] = dict(summary.channels)
+        self.data_end = summary.data_end if summary.finished else size
+        self.crc: Optional[int] = zlib.crc32(MAGIC)   # of the data section so far (None: lost)
+        self.pos = len(MAGIC)
+        self.chunk_number = 0
+        self.lost: Optional[Damage] = None   # the damaged chunk whose message indexes follow
+        self.orphans: Dict[int, int] = {}    # channel id: messages whose channel is unknown
+        self.chunk_offsets = sorted(summary.chunks)
+        self.ordinal = {offset: i + 1 for i, offset in enumerate(self.chunk_offsets)}
+
+
 class BagReader:
     def __init__(self, path: str, salvage: bool = False):
         path = os.path.abspath(path)
@@ -394,144 +411,176 @@ class BagReader:
             yield from self._scan_records(f, path, size, summary, wanted)
 
     def _scan_records(self, f, path, size, summary: _Summary, wanted) -> Iterator[BagMessage]:
-        schemas: Dict[int, Schema] = dict(summary.schemas)
-        channels: Dict[int, Channel] = dict(summary.channels)
-        data_end = summary.data_end if summary.finished else size
-        crc = zlib.crc32(MAGIC)
-        pos = len(MAGIC)
-        chunk_number = 0
-        lost: Optional[Damage] = None     # the damaged chunk whose message indexes follow
-        orphans: Dict[int, int] = {}      # channel id: messages whose channel is unknown
-        chunk_offsets = sorted(summary.chunks)
-        ordinal = {offset: i + 1 for i, offset in enumerate(chunk_offsets)}
+        """
+        Read the data section record by record, one handler per record type.
+
+        Chunks and messages yield their messages; the rest update the scan's state.
+        """
+        scan = _Scan(path, size, summary)
+        handlers = {_CHUNK_OP: self._on_chunk, _MESSAGE_OP: self._on_message_record,
+                    _MESSAGE_INDEX: self._on_message_index, _SCHEMA: self._on_definition,
+                    _CHANNEL: self._on_definition}
         while True:
             head = f.read(9)
-            if len(head) < 9 or pos + 9 > data_end:
-                if summary.finished:
-                    self._damaged(path, Damage(path, pos, 'the data section ends without its '
-                                                          'DataEnd record'))
-                else:
-                    self._tail[path] = size - pos
+            if len(head) < 9 or scan.pos + 9 > scan.data_end:
+                self._on_section_end(scan)
                 break
             opcode, length = _RECORD.unpack(head)
-            if length > data_end - pos - 9:
-                if not summary.finished:       # cut off at the end: the recorder was killed
-                    self._tail[path] = size - pos
+            if length > scan.data_end - scan.pos - 9:
+                resume = self._on_overlong(scan, opcode, length)
+                if resume is None:
                     break
-                index = summary.chunks.get(pos)
-                later = [o for o in chunk_offsets if o > pos]
-                if index is not None:  # a chunk whose length field is damaged: skip it by index
-                    chunk_number = ordinal[pos]
-                    lost = self._chunk_damage(path, pos, chunk_number, summary, index,
-                                              f'its record length ({length} bytes) runs past '
-                                              'the data section')
-                    self._damaged(path, lost)
-                    resume = pos + index.chunk_length
-                else:
-                    self._damaged(path, Damage(
-                        path, pos, f'a record (opcode {opcode:#04x}) claims {length} bytes, past '
-                        'the data section' + ('' if later else '; nothing after it is readable')))
-                    if not later:
-                        break
-                    resume = later[0]
-                crc = None                     # the data-section CRC cannot be checked now
+                scan.crc = None                # the data-section CRC cannot be checked now
                 f.seek(resume)
-                pos = resume
+                scan.pos = resume
                 continue
             body = f.read(length)
-            before = crc
-            if crc is not None:
-                crc = zlib.crc32(body, zlib.crc32(head, crc))
-            at, pos = pos, pos + 9 + length
-            if opcode == _CHUNK_OP:
-                chunk_number = ordinal.get(at, chunk_number + 1)
-                lost = None
-                try:
-                    records = _open_chunk(body)
-                except Exception as exc:  # noqa: BLE001  (zstd and lz4 raise their own types)
-                    lost = self._chunk_damage(path, at, chunk_number, summary,
-                                              summary.chunks.get(at), str(exc), body)
-                    self._damaged(path, lost)
-                    continue
-                batch = []
-                try:
-                    for op, rec in _records(records):
-                        if op == _MESSAGE_OP:
-                            batch.append(_MESSAGE.unpack_from(rec) + (rec,))
-                        elif op == _SCHEMA:
-                            schema = _parse(Schema, rec)
-                            schemas[schema.id] = schema
-                        elif op == _CHANNEL:
-                            channel = _parse(Channel, rec)
-                            channels[channel.id] = channel
-                except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
-                    lost = self._chunk_damage(path, at, chunk_number, summary,
-                                              summary.chunks.get(at),
-                                              f'its records do not parse ({exc})', body)
-                    self._damaged(path, lost)
-                    continue
-                for channel_id, sequence, log_time, publish_time, rec in batch:
-                    message = self._message(path, channels, schemas, orphans, wanted, channel_id,
-                                            sequence, log_time, publish_time,
-                                            bytes(rec[_MESSAGE.size:]))
-                    if message is not None:
-                        yield message
-            elif opcode == _MESSAGE_INDEX and lost is not None and len(body) >= 6:
-                channel_id, = struct.unpack_from('<H', body)
-                count = _U32.unpack_from(body, 2)[0] // 16
-                lost.messages = (lost.messages or 0) + count
-                channel = channels.get(channel_id)
-                name = channel.topic if channel is not None else f'channel {channel_id}'
-                if name not in lost.topics:
-                    lost.topics.append(name)
-            elif opcode == _MESSAGE_OP:
-                message = self._message(path, channels, schemas, orphans, wanted,
-                                        *_MESSAGE.unpack_from(body), body[_MESSAGE.size:])
-                if message is not None:
-                    yield message
-            elif opcode in (_SCHEMA, _CHANNEL):   # outside chunks (other writers)
-                try:
-                    record = _parse(Schema if opcode == _SCHEMA else Channel, body)
-                except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
-                    kind = 'schema' if opcode == _SCHEMA else 'channel'
-                    self._damaged(path, Damage(path, at,
-                                               f'a {kind} record does not parse ({exc})'))
-                    continue
-                (schemas if opcode == _SCHEMA else channels)[record.id] = record
-            elif opcode == _DATA_END:
-                stored = _U32.unpack_from(body)[0] if len(body) >= 4 else 0
-                if before is not None and stored and stored != before \
-                        and not self._damage.get(path):  # damaged chunks explain it already
-                    self._damaged(path, Damage(
-                        path, at, f'data section CRC mismatch (stored {stored:#010x}, computed '
-                        f'{before:#010x}): bytes outside the chunks (message indexes...) are '
-                        'damaged', messages=0))
+            before = scan.crc
+            if scan.crc is not None:
+                scan.crc = zlib.crc32(body, zlib.crc32(head, scan.crc))
+            at = scan.pos
+            scan.pos += 9 + length
+            if opcode == _DATA_END:
+                self._on_data_end(scan, at, body, before)
                 break
-            elif opcode == _FOOTER_OP:
+            if opcode == _FOOTER_OP:
                 break
-        if orphans:
-            ids = ', '.join(f'{n} on channel {c}' for c, n in sorted(orphans.items()))
-            self._damaged(path, Damage(path, None, f'{sum(orphans.values())} messages whose '
-                                                   f'channel is defined nowhere readable ({ids}): '
-                                                   'its definition was in a damaged chunk',
-                                       messages=sum(orphans.values())))
+            handler = handlers.get(opcode)
+            if handler is not None:
+                yield from handler(scan, at, opcode, body, wanted)
+        if scan.orphans:
+            ids = ', '.join(f'{n} on channel {c}' for c, n in sorted(scan.orphans.items()))
+            count = sum(scan.orphans.values())
+            self._damaged(path, Damage(path, None, f'{count} messages whose channel is defined '
+                                                   f'nowhere readable ({ids}): its definition '
+                                                   'was in a damaged chunk', messages=count))
 
-    def _message(self, path, channels, schemas, orphans, wanted, channel_id, sequence, log_time,
-                 publish_time, data: bytes) -> Optional[BagMessage]:
+    def _on_section_end(self, scan: '_Scan') -> None:
+        """No whole record header left: an unfinished file ends here, a finished one is cut."""
+        if scan.summary.finished:
+            self._damaged(scan.path, Damage(scan.path, scan.pos, 'the data section ends without '
+                                                                 'its DataEnd record'))
+        else:
+            self._tail[scan.path] = scan.size - scan.pos
+
+    def _on_overlong(self, scan: '_Scan', opcode: int, length: int) -> Optional[int]:
+        """
+        Handle a record that claims more bytes than the data section has.
+
+        Return where reading resumes (None: nothing after it is readable).
+        """
+        path, pos, summary = scan.path, scan.pos, scan.summary
+        if not summary.finished:       # cut off at the end: the recorder was killed
+            self._tail[path] = scan.size - pos
+            return None
+        index = summary.chunks.get(pos)
+        later = [o for o in scan.chunk_offsets if o > pos]
+        if index is not None:  # a chunk whose length field is damaged: skip it by its index
+            scan.chunk_number = scan.ordinal[pos]
+            scan.lost = self._chunk_damage(path, pos, scan.chunk_number, summary, index,
+                                           f'its record length ({length} bytes) runs past the '
+                                           'data section')
+            self._damaged(path, scan.lost)
+            return pos + index.chunk_length
+        self._damaged(path, Damage(
+            path, pos, f'a record (opcode {opcode:#04x}) claims {length} bytes, past the data '
+            'section' + ('' if later else '; nothing after it is readable')))
+        return later[0] if later else None
+
+    def _on_chunk(self, scan: '_Scan', at: int, _opcode, body, wanted) -> Iterator[BagMessage]:
+        path, summary = scan.path, scan.summary
+        scan.chunk_number = scan.ordinal.get(at, scan.chunk_number + 1)
+        scan.lost = None
+        try:
+            records = _open_chunk(body)
+        except Exception as exc:  # noqa: BLE001  (zstd and lz4 raise their own types)
+            scan.lost = self._chunk_damage(path, at, scan.chunk_number, summary,
+                                           summary.chunks.get(at), str(exc), body)
+            self._damaged(path, scan.lost)
+            return
+        batch = []
+        try:
+            for op, rec in _records(records):
+                if op == _MESSAGE_OP:
+                    batch.append(_MESSAGE.unpack_from(rec) + (rec,))
+                elif op == _SCHEMA:
+                    schema = _parse(Schema, rec)
+                    scan.schemas[schema.id] = schema
+                elif op == _CHANNEL:
+                    channel = _parse(Channel, rec)
+                    scan.channels[channel.id] = channel
+        except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
+            scan.lost = self._chunk_damage(path, at, scan.chunk_number, summary,
+                                           summary.chunks.get(at),
+                                           f'its records do not parse ({exc})', body)
+            self._damaged(path, scan.lost)
+            return
+        for channel_id, sequence, log_time, publish_time, rec in batch:
+            message = self._message(scan, wanted, channel_id, sequence, log_time, publish_time,
+                                    bytes(rec[_MESSAGE.size:]))
+            if message is not None:
+                yield message
+
+    def _on_message_record(self, scan: '_Scan', _at, _opcode, body,
+                           wanted) -> Iterator[BagMessage]:
+        """Yield a message record found outside chunks (other writers)."""
+        message = self._message(scan, wanted, *_MESSAGE.unpack_from(body),
+                                body[_MESSAGE.size:])
+        if message is not None:
+            yield message
+
+    def _on_message_index(self, scan: '_Scan', _at, _opcode, body, _wanted) -> Iterator:
+        """Count the messages of a damaged chunk from the message indexes after it."""
+        lost = scan.lost
+        if lost is not None and len(body) >= 6:
+            channel_id, = struct.unpack_from('<H', body)
+            count = _U32.unpack_from(body, 2)[0] // 16
+            lost.messages = (lost.messages or 0) + count
+            channel = scan.channels.get(channel_id)
+            name = channel.topic if channel is not None else f'channel {channel_id}'
+            if name not in lost.topics:
+                lost.topics.append(name)
+        return ()
+
+    def _on_definition(self, scan: '_Scan', at: int, opcode: int, body, _wanted) -> Iterator:
+        """Keep a schema or channel record found outside chunks (other writers)."""
+        kind, cls, table = (('schema', Schema, scan.schemas) if opcode == _SCHEMA
+                            else ('channel', Channel, scan.channels))
+        try:
+            record = _parse(cls, body)
+        except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
+            self._damaged(scan.path, Damage(scan.path, at, f'a {kind} record does not parse '
+                                                           f'({exc})'))
+            return ()
+        table[record.id] = record
+        return ()
+
+    def _on_data_end(self, scan: '_Scan', at: int, body, before: Optional[int]) -> None:
+        """Check the data section's CRC (unless damaged chunks explain a mismatch already)."""
+        stored = _U32.unpack_from(body)[0] if len(body) >= 4 else 0
+        if before is not None and stored and stored != before \
+                and not self._damage.get(scan.path):
+            self._damaged(scan.path, Damage(
+                scan.path, at, f'data section CRC mismatch (stored {stored:#010x}, computed '
+                f'{before:#010x}): bytes outside the chunks (message indexes...) are damaged',
+                messages=0))
+
+    def _message(self, scan: '_Scan', wanted, channel_id, sequence, log_time, publish_time,
+                 data: bytes) -> Optional[BagMessage]:
         """
         Return one message record as a BagMessage, counted as read.
 
         None when its topic is not wanted, or when its channel is unknown (then it is counted in
-        ``orphans``: its definition was in a damaged chunk).
+        the scan's ``orphans``: its definition was in a damaged chunk).
         """
-        channel = channels.get(channel_id)
+        channel = scan.channels.get(channel_id)
         if channel is None:
-            orphans[channel_id] = orphans.get(channel_id, 0) + 1
+            scan.orphans[channel_id] = scan.orphans.get(channel_id, 0) + 1
             return None
-        self._read[path] += 1
+        self._read[scan.path] += 1
         if wanted is not None and channel.topic not in wanted:
             return None
-        schema = schemas.get(channel.schema_id)
+        schema = scan.schemas.get(channel.schema_id)
         return BagMessage(channel.topic, schema.name if schema else '', data, log_time,
                           publish_time, sequence, channel, schema)
 
