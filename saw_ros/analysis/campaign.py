@@ -203,8 +203,8 @@ def markdown(results: List[ConditionResult], summary: Dict[str, object]) -> str:
                  f'{PAPER_ERRORS_PCT["overall"]} |')
     lines += ['', 'Our "experiment" is the virtual camera and tracker, so the error measures the '
               "vision pipeline, not the model; the paper's errors compare its model with the "
-              'real robot (and its 4 V error is blamed on the motor slowing under load, which a '
-              'constant-speed helix ignores).', '',
+              'real robot (it blames its 4 V error on the motor slowing under load, which its '
+              'constant-speed simulation ignores; ours simulates the motor: docs/motor.md).', '',
               '## Speed against slope and voltage (Figure 17): linear fits of the tracked speed',
               '', '| line | slope of the fit | R^2 |', '|---|---|---|']
     for v, (a, _b, r2) in summary['speed_vs_slope_fits'].items():
