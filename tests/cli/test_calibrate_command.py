@@ -60,3 +60,30 @@ def test_without_the_optimiser_package_calibrate_says_what_to_install(tmp_path, 
     err = capsys.readouterr().err
     assert 'pip install cmaes==0.13.1' in err and 'Traceback' not in err
     assert not (tmp_path / 'run').exists()
+
+
+def test_a_fit_worse_than_its_start_does_not_write_the_config_unless_asked(tmp_path, capsys):
+    """Targets the defaults already meet: any short fit ends worse, and says what to do."""
+    from saw_ros.analysis import calibrate as cal
+    targets = tmp_path / 'own.csv'
+    targets.write_text(FOOTAGE)
+    # The defaults' own speeds as the measurements: the start fits them exactly.
+    own = cal.Model(cal.load_targets(targets)).outcomes([{}])[0]
+    rows = FOOTAGE.splitlines()
+    lines = [rows[0]] + [','.join(r.split(',')[:4] + [repr(float(v))] + r.split(',')[5:])
+                         for r, v in zip(rows[1:], own)]
+    targets.write_text('\n'.join(lines) + '\n')
+    out, yaml_path = tmp_path / 'run', tmp_path / 'calibrated.yaml'
+    args = ['calibrate', '--targets', str(targets), '--params', 'motor.hz_per_volt', '--quick',
+            '--quiet', '--out', str(out), '--write-config', str(yaml_path)]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert not yaml_path.exists()
+    assert f'did not write {yaml_path}' in err and 'worse than the parameters it started from' \
+        in err and f'--resume {out} --generations 60' in err and '--write-worse' in err
+    result = json.loads((out / 'result.json').read_text())
+    assert result['loss'] > result['loss_default']
+    assert main(args + ['--write-worse']) == 0
+    assert yaml_path.is_file()
+    assert main(['calibrate', '--quick', '--write-worse']) == 2
+    assert '--write-worse applies to --write-config' in capsys.readouterr().err

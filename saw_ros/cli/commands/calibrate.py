@@ -53,7 +53,10 @@ def add_arguments(p):
     p.add_argument('--quick', action='store_true', help='a tiny budget (tests, a first look)')
     p.add_argument('--write-config', type=Path, default=None, metavar='PATH',
                    help='also write the calibrated simulator parameter file there (e.g. '
-                   'msg_config/simulator_calibrated.yaml)')
+                   'msg_config/simulator_calibrated.yaml); not when the fit ends worse than the '
+                   'parameters it started from, unless --write-worse')
+    p.add_argument('--write-worse', action='store_true',
+                   help='write --write-config even when the fit is worse than its start')
     p.add_argument('--quiet', action='store_true', help='no progress bar, no table')
     add_pool_arguments(p)
 
@@ -79,6 +82,8 @@ def command_line(args) -> str:
         parts.append(f'--out {args.out}')
     if args.write_config:
         parts.append(f'--write-config {args.write_config}')
+    if args.write_worse:
+        parts.append('--write-worse')
     return ' '.join(parts)
 
 
@@ -99,6 +104,8 @@ def run(args):
                 raise UserError(f'--{flag} must be at least {2 if flag == "popsize" else 1}')
             budget[flag] = value
     settings = cal.Settings(budget['generations'], budget['popsize'], args.seed, budget['sigma'])
+    if args.write_worse and not args.write_config:
+        raise UserError('--write-worse applies to --write-config, which was not given')
     if args.resume and (args.targets or args.params or args.out):
         raise UserError('--resume continues a saved run with its own targets, parameters and '
                         'folder: do not give --targets, --params or --out with it')
@@ -140,6 +147,17 @@ def run(args):
           f'{c["defaults"]["untrained"]} not trained on, calibrated '
           f'{c["calibrated"]["held_untrained"]} of {c["calibrated"]["untrained"]} (not held: '
           f'{", ".join(c["calibrated"]["not_held"]) or "none"})')
+    worse = d['loss'] > d['loss_default']
+    if args.write_config and worse and not args.write_worse:
+        # A "calibrated" file that fits the targets worse than the defaults would replace better
+        # parameters without a word; a short run (--quick) can end there.
+        more = max(2 * d['generations'], cal.Settings().generations)
+        print(f'saw-ros calibrate: did not write {args.write_config}: the best fit is worse than '
+              f'the parameters it started from (mean squared relative error '
+              f'{d["loss_default"]:.3e} -> {d["loss"]:.3e} after {d["generations"]} generations);'
+              f' run more generations (saw-ros calibrate --resume {folder} --generations {more})'
+              f' or give --write-worse to write it anyway', file=sys.stderr)
+        return 1
     if args.write_config:
         try:
             path = cal.write_calibrated_yaml(result, args.write_config, command)
