@@ -140,6 +140,85 @@ def _channel_qos(channel: Channel) -> List[dict]:
     return profiles if isinstance(profiles, list) else []
 
 
+def _one_line(text) -> str:
+    return ' '.join(str(text).split())
+
+
+# What metadata.yaml's fields must be, where the reader uses them (None: may be absent or ~).
+_METADATA_TYPES = (('relative_file_paths', list, 'a list of file names'),
+                   ('message_count', int, 'an integer'),
+                   ('topics_with_message_count', list, 'a list'),
+                   ('starting_time', dict, 'a mapping'),
+                   ('duration', dict, 'a mapping'),
+                   ('custom_data', dict, 'a mapping'))
+
+
+def read_metadata(meta_path: str) -> dict:
+    """
+    Return the ``rosbag2_bagfile_information`` mapping of a metadata.yaml, its fields checked.
+
+    BagReadError (one line naming the file and what is wrong) if it is not YAML, not a mapping,
+    or a field the reader uses has the wrong type; a metadata.yaml that is a link out of its bag
+    is refused like any file outside the bag.
+    """
+    inside(os.path.dirname(meta_path), os.path.basename(meta_path), meta_path)
+    try:
+        with open(meta_path, encoding='utf-8') as f:
+            doc = yaml.safe_load(f)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BagReadError(f'{meta_path} cannot be read: {_one_line(exc)}') from None
+    except yaml.YAMLError as exc:
+        where = getattr(exc, 'problem_mark', None)
+        at = f' (line {where.line + 1})' if where is not None else ''
+        raise BagReadError(f'{meta_path} is not YAML{at}: '
+                           f'{_one_line(getattr(exc, "problem", None) or exc)}') from None
+    if not isinstance(doc, dict):
+        raise BagReadError(f'{meta_path} is not a rosbag2 metadata file: a '
+                           f'{type(doc).__name__} where a mapping with '
+                           'rosbag2_bagfile_information should be')
+    info = doc.get('rosbag2_bagfile_information')
+    if not isinstance(info, dict):
+        raise BagReadError(f'{meta_path} has no rosbag2_bagfile_information mapping')
+    for key, kind, what in _METADATA_TYPES:
+        value = info.get(key)
+        if value is not None and (not isinstance(value, kind) or isinstance(value, bool)):
+            raise BagReadError(f'{meta_path}: {key} must be {what}, '
+                               f'not {_one_line(value)[:200]!r}')
+    if not all(isinstance(n, str) and n for n in info.get('relative_file_paths') or []):
+        raise BagReadError(f'{meta_path}: relative_file_paths must be a list of file names')
+    for entry in info.get('topics_with_message_count') or []:
+        meta = entry.get('topic_metadata') if isinstance(entry, dict) else None
+        if not (isinstance(meta, dict) and isinstance(meta.get('name'), str)
+                and isinstance(entry.get('message_count', 0), int)
+                and all(isinstance(meta.get(k, ''), str)
+                        for k in ('type', 'serialization_format', 'type_description_hash'))
+                and isinstance(meta.get('offered_qos_profiles') or [], list)):
+            raise BagReadError(f'{meta_path}: topics_with_message_count entries must be '
+                               'mappings with topic_metadata (name, type...) and message_count, '
+                               f'not {_one_line(entry)[:200]!r}')
+    return info
+
+
+def inside(directory: str, name: str, source: str) -> str:
+    """
+    Return the path of file ``name`` of the bag ``directory``, refusing any that leaves it.
+
+    An absolute name, a ``..`` out of it or a symbolic link that resolves outside it is a
+    BagReadError naming ``source`` (where the name comes from): a bag never reads or writes
+    outside its own directory, whatever its metadata.yaml says.
+    """
+    if os.path.isabs(name):
+        raise BagReadError(f'{source}: file {name!r} is an absolute path; the files of a bag '
+                           'are inside its directory')
+    root = os.path.realpath(directory)
+    target = os.path.realpath(os.path.join(directory, name))
+    if os.path.commonpath([root, target]) != root or target == root:
+        how = 'leads' if '..' in name.split('/') else 'is a link'
+        raise BagReadError(f'{source}: file {name!r} {how} outside the bag directory '
+                           f'({target}); refused')
+    return os.path.join(directory, name)
+
+
 class _Short(ValueError):
     pass
 
@@ -304,16 +383,13 @@ class BagReader:
         self.metadata: Optional[dict] = None
         if os.path.isdir(path):
             meta_path = os.path.join(path, 'metadata.yaml')
-            if os.path.isfile(meta_path):
-                with open(meta_path, encoding='utf-8') as f:
-                    doc = yaml.safe_load(f) or {}
-                self.metadata = doc.get('rosbag2_bagfile_information')
-                if self.metadata is None:
-                    raise BagReadError(f'{meta_path} has no rosbag2_bagfile_information')
+            if os.path.lexists(meta_path):
+                self.metadata = read_metadata(meta_path)
                 names = self.metadata.get('relative_file_paths') or []
-                self.files = [os.path.join(path, n) for n in names]
+                self.files = [inside(path, n, meta_path) for n in names]
             else:
-                self.files = sorted(glob.glob(os.path.join(path, '*.mcap')))
+                self.files = [inside(path, os.path.basename(n), path)
+                              for n in sorted(glob.glob(os.path.join(path, '*.mcap')))]
             if not self.files:
                 raise BagReadError(f'{path} holds no .mcap file (not a bag directory)')
         else:
@@ -328,6 +404,7 @@ class BagReader:
         self._read: Dict[str, int] = {}
         self._expected: Dict[str, Optional[int]] = {}
         self._collect = False     # a full scan in progress: note damage, raise at the end
+        self._topics: Dict[str, TopicSummary] = {}    # what the last topics() found
 
     @property
     def complete(self) -> bool:
@@ -426,6 +503,9 @@ class BagReader:
                 self._on_section_end(scan)
                 break
             opcode, length = _RECORD.unpack(head)
+            if opcode == 0:    # no MCAP record has it: zeros (a preallocated or wiped file)
+                self._on_not_a_record(scan, head)
+                break
             if length > scan.data_end - scan.pos - 9:
                 resume = self._on_overlong(scan, opcode, length)
                 if resume is None:
@@ -462,6 +542,19 @@ class BagReader:
                                                                  'its DataEnd record'))
         else:
             self._tail[scan.path] = scan.size - scan.pos
+
+    def _on_not_a_record(self, scan: '_Scan', head: bytes) -> None:
+        """
+        Stop at bytes that cannot start a record (opcode 0x00), as damage.
+
+        Scanning on would take 9-byte steps through what may be a gigabyte of zeros (35 s for
+        1 GiB), to report nothing more.
+        """
+        rest = scan.data_end - scan.pos
+        what = 'zero bytes' if not any(head) else 'bytes that are no MCAP record (opcode 0x00)'
+        self._damaged(scan.path, Damage(
+            scan.path, scan.pos, f'{what} where a record should start; the {rest} bytes from '
+                                 'there on are not read', messages=None))
 
     def _on_overlong(self, scan: '_Scan', opcode: int, length: int) -> Optional[int]:
         """
@@ -665,7 +758,46 @@ class BagReader:
                     meta['name'], meta.get('type', ''), meta.get('serialization_format', ''),
                     offered_qos_profiles=meta.get('offered_qos_profiles') or [],
                     type_hash=meta.get('type_description_hash', ''))
+        self._topics = out
         return out
+
+    def shortfall(self) -> Optional[str]:
+        """
+        Say in one line what an unfinished bag lacks; None when the scan found it complete.
+
+        After a full scan (``topics()``, ``info()``). Where metadata.yaml is there (a copy cut
+        short) its counts give what is missing per topic and its end the log time range lost;
+        without it (the recorder was killed) only where the readable part ends is known.
+        """
+        if self.complete:
+            return None
+        topics = self._topics
+        read = sum(t.count for t in topics.values())
+        ends = [t.last for t in topics.values() if t.last is not None]
+        last = max(ends) if ends else None
+        text = (f'{self.path} is unfinished (no summary: the recorder was killed or the copy is '
+                f'cut short); {read} messages readable')
+        expected = self.metadata.get('message_count') if self.metadata else None
+        if isinstance(expected, int):
+            missing = []
+            for entry in self.metadata.get('topics_with_message_count') or []:
+                name = entry['topic_metadata']['name']
+                got = topics[name].count if name in topics else 0
+                if entry.get('message_count', 0) > got:
+                    missing.append(f'{name}: {entry["message_count"] - got}')
+            text += (f' of {expected} (metadata.yaml); missing {max(expected - read, 0)}'
+                     + (f' ({", ".join(missing)})' if missing else ''))
+            start = (self.metadata.get('starting_time') or {}).get('nanoseconds_since_epoch')
+            length = (self.metadata.get('duration') or {}).get('nanoseconds')
+            if isinstance(start, int) and isinstance(length, int) and last is not None \
+                    and start + length > last:
+                text += (f', log time {stamp(last)} .. {stamp(start + length)} '
+                         f'({(start + length - last) / 1e9:.3f} s) lost')
+        else:
+            text += (f'; whatever came after log time {stamp(last)} is lost (no metadata.yaml '
+                     'says how much: a killed recorder loses what it had not yet written, about '
+                     'its last 0.5 s and one chunk)' if last is not None else '')
+        return text + f'; saw-ros bag reindex {self.path} makes it a finished bag'
 
     def info(self) -> dict:
         topics = self.topics()
@@ -686,4 +818,5 @@ class BagReader:
             'damage': self.damage,
             'expected_messages': self.expected_messages(),
             'has_metadata_yaml': self.metadata is not None,
+            'shortfall': self.shortfall(),
         }

@@ -108,6 +108,8 @@ class Player(Node):
             topics = self.reader.topics()
         except BagReadError as exc:
             raise NodeFailure(str(exc)) from None
+        if self.reader.shortfall():     # plays what is readable, but says what is not there
+            self.get_logger().warning(self.reader.shortfall())
         wanted = [t for t in p['topics'] if t]
         self.topics = {n: t for n, t in topics.items() if not wanted or n in wanted}
         self.publishers_by_topic = {}
