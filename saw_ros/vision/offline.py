@@ -7,7 +7,7 @@ the robot's line, size, colour and motion, the spacing in pixels not being known
 
 Both take a video file's path or any frame source: an object with ``size`` (width, height) and
 ``frames()`` yielding (index, t in s, bgr8 frame), such as a recording's camera stream
-(saw_ros.cli.commands.bag.BagFrames: raw or JPEG).
+(saw_ros.analysis.bag_frames.BagFrames: raw or JPEG).
 """
 from __future__ import annotations
 

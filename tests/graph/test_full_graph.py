@@ -56,7 +56,7 @@ def test_in_process_campaign_gives_the_same_numbers_as_the_nodes_over_dds(graph_
 
 def test_the_bag_opens_in_a_viewer_and_gives_back_the_camera_video(graph_run, tmp_path):
     """What docs/viewers.md promises of the main job's recording, and saw-ros bag video."""
-    from saw_ros.cli.commands.bag import bag_video
+    from saw_ros.analysis.bag_frames import bag_video
     from saw_ros.vision.video import video_info
     counts = {name: t.count for name, t in BagReader(str(graph_run.bag_dir)).info()[
         'topics'].items()}

@@ -13,7 +13,7 @@ ALLOWED = {
     'interface': {'core'},
     'vision': {'core'},
     'bag': {'interface'},
-    'analysis': {'core', 'vision', 'interface'},
+    'analysis': {'core', 'vision', 'interface', 'bag'},
     'ros': {'core', 'vision', 'interface', 'bag', 'analysis'},
     'graph': {'interface', 'bag'},
     'cli': {'core', 'vision', 'interface', 'bag', 'analysis', 'graph'},

@@ -83,6 +83,8 @@ def format_info(info: dict) -> str:
         lines.append('State:             unfinished file (recorder killed?): read up to its last '
                      'complete record' + (f'; the last {cut} bytes (an incomplete record) not read'
                                           if cut else ''))
+        if info.get('shortfall'):
+            lines.append(f'Missing:           {info["shortfall"]}')
     if not info['has_metadata_yaml']:
         lines.append('metadata.yaml:     missing (read from the MCAP file)')
     topics = sorted(info['topics'].values(), key=lambda t: t.name)
@@ -128,6 +130,7 @@ def run(args):
             raise UserError(f'no bag at {args.bag}')
         return _node('player', {'bag': os.path.abspath(args.bag), 'rate': float(args.rate)})
     if args.bag_command == 'video':
+        from saw_ros.analysis.bag_frames import bag_video
         from saw_ros.bag.reader import BagReadError
         try:
             frames, fps = bag_video(args.bag, args.output, args.topic or None)
@@ -137,90 +140,3 @@ def run(args):
         return 0
     print(f'unknown action {args.bag_command}', file=sys.stderr)
     return 2
-
-
-class BagFrames:
-    """
-    The camera frames of a recording as a frame source (saw_ros.vision.offline).
-
-    ``topic``: an image topic (CompressedImage or Image); default the camera's compressed
-    stream if recorded, else its raw one. A recording without frames is a UserError that names
-    the image topics it has. Times are the frames' stamps, s.
-    """
-
-    def __init__(self, bag, topic=None):
-        from saw_ros.bag.reader import BagReader
-        from saw_ros.interface import topics
-        self.bag = bag
-        self.reader = BagReader(bag)
-        recorded = self.reader.info()['topics']
-        candidates = [topic] if topic else [topics.IMAGE_COMPRESSED, topics.IMAGE]
-        self.topic = next((t for t in candidates if t in recorded and recorded[t].count), None)
-        if self.topic is None:
-            images = [t.name for t in recorded.values()
-                      if t.type.startswith('sensor_msgs/msg/') and 'Image' in t.type]
-            raise UserError(f'{bag} holds no frames on {" or ".join(candidates)}; image topics '
-                            f'recorded: {", ".join(images) or "none"}')
-        self.count = recorded[self.topic].count
-
-    def frames(self):
-        import numpy as np
-
-        from saw_ros.vision import compressed
-        for k, (_, msg) in enumerate(self.reader.decoded_messages([self.topic])):
-            if hasattr(msg, 'format'):
-                frame, _ = compressed.decode(msg.format, bytes(msg.data))
-            else:
-                frame = np.frombuffer(bytes(msg.data), np.uint8).reshape(
-                    msg.height, msg.width, -1)
-                if msg.encoding == 'rgb8':
-                    frame = np.ascontiguousarray(frame[:, :, ::-1])
-            yield k, msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, frame
-
-    @property
-    def size(self):
-        _, _, frame = next(iter(self.frames()))
-        return frame.shape[1], frame.shape[0]
-
-    @property
-    def fps(self) -> float:
-        return _fps_of(self.reader, self.topic)
-
-    def __str__(self):
-        return f'{self.bag} ({self.topic})'
-
-
-def bag_video(bag, output, topic=None):
-    """
-    Write the camera frames of ``bag`` to the video ``output``; return (frames, fps).
-
-    The frames' rate comes from their stamps (the median interval), in the order recorded.
-    """
-    from saw_ros.vision.video import VideoWriter
-    source = BagFrames(bag, topic)
-    fps = source.fps
-    frames = 0
-    writer = None
-    try:
-        for _, _, frame in source.frames():
-            if writer is None:
-                writer = VideoWriter(output, fps, frame.shape[1::-1])
-            writer.write(frame)
-            frames += 1
-    finally:
-        if writer is not None:
-            writer.close()
-    return frames, fps
-
-
-def _fps_of(reader, topic) -> float:
-    """Return the frame rate of ``topic`` from the median interval of its first stamps."""
-    import numpy as np
-    stamps = []
-    for _, msg in reader.decoded_messages([topic]):
-        stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
-        if len(stamps) >= 61:
-            break
-    gaps = np.diff(stamps)
-    gaps = gaps[gaps > 0]
-    return round(1e9 / float(np.median(gaps)), 3) if len(gaps) else 60.0

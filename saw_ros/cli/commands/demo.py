@@ -13,8 +13,10 @@ from pathlib import Path
 import sys
 import time
 
-from saw_ros.cli.commands.bag import bag_video
+from saw_ros.analysis.bag_frames import bag_video
+from saw_ros.bag.reader import BagReadError
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
+from saw_ros.cli.errors import UserError
 from saw_ros.graph.pipeline import format_comparison, PipelineError, run_pipeline, write_report
 from saw_ros.interface.config import config_path
 
@@ -60,7 +62,10 @@ def run(args):
         if result.comparison:
             print(f'report              {write_report(result)}')
         if not args.no_video:
-            frames, fps = bag_video(result.bag_dir, out / 'camera.mp4')
+            try:
+                frames, fps = bag_video(result.bag_dir, out / 'camera.mp4')
+            except BagReadError as exc:
+                raise UserError(str(exc)) from None
             print(f'camera video        {out / "camera.mp4"} ({frames} frames, {fps:g} fps)')
     print(f'comparison (JSON)   {out / "comparison.json"}')
     print(f'node logs           {out / "logs"}')

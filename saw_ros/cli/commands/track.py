@@ -127,7 +127,7 @@ def _cells(k, r):
 
 def _source(path, fps: float):
     """Return the frames to track: a recording's camera stream, or the video file."""
-    from saw_ros.cli.commands.bag import BagFrames
+    from saw_ros.analysis.bag_frames import BagFrames
     from saw_ros.vision.offline import VideoFile
     p = Path(path)
     if p.suffix == '.mcap' or (p.is_dir() and (p / 'metadata.yaml').exists()):
