@@ -72,6 +72,45 @@ def range_text(meta: Dict[str, Any]) -> str:
     return f'{left}{lo}, {hi}{right}{unit}'
 
 
+def check_value(name: str, value: Any, meta: Dict[str, Any], default: Any = 0.0) -> Any:
+    """
+    Return ``value`` checked against the spec() metadata ``meta`` of parameter ``name``.
+
+    The one range check of every parameter: the Scenario's groups run it on each field, the ROS
+    nodes on their own parameters (``saw_ros.ros.params``). ``default`` gives the kind: an
+    integer where the default is one, else a finite number, returned as a float; a value among
+    ``meta['choices']`` where the metadata lists them. None, booleans and other kinds (strings,
+    lists) without choices are returned unchecked. Raises ParameterError naming the parameter,
+    the value and the allowed range with its unit.
+    """
+    choices = meta.get('choices')
+    if choices is not None and value not in choices:
+        raise ParameterError(f'{name} = {value!r} is invalid: must be one of '
+                             f'{", ".join(map(str, choices))}')
+    if choices is not None or value is None or isinstance(value, bool) or \
+            isinstance(default, (bool, str, list, tuple)):
+        return value
+    if isinstance(default, int):
+        if not isinstance(value, int):
+            raise ParameterError(f'{name} = {value!r} is invalid: must be an integer in '
+                                 f'{range_text(meta)}')
+    elif not isinstance(value, (int, float)):
+        raise ParameterError(f'{name} = {value!r} is invalid: must be a number in '
+                             f'{range_text(meta)}')
+    else:
+        value = float(value)
+    if not math.isfinite(value):
+        raise ParameterError(f'{name} = {value!r} is invalid: must be finite, in '
+                             f'{range_text(meta)}')
+    low, high = meta.get('low'), meta.get('high')
+    too_low = low is not None and (value <= low if meta.get('low_open') else value < low)
+    too_high = high is not None and (value >= high if meta.get('high_open') else value > high)
+    if too_low or too_high:
+        raise ParameterError(f'{name} = {value:g} is out of range: allowed '
+                             f'{range_text(meta)} ({meta["description"]})')
+    return value
+
+
 class _Validated:
     """Mixin: checks every numeric field against its metadata range after construction."""
 
@@ -80,32 +119,11 @@ class _Validated:
     def __post_init__(self):
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if value is None or not f.metadata:
+            if not f.metadata:
                 continue
-            name = f'{self.section}.{f.name}'
-            if isinstance(value, bool):
-                continue
-            if isinstance(f.default, int) and not isinstance(f.default, bool):
-                if not isinstance(value, int) or isinstance(value, bool):
-                    raise ParameterError(f'{name} = {value!r} is invalid: must be an integer '
-                                         f'in {range_text(f.metadata)}')
-            elif not isinstance(value, (int, float)):
-                raise ParameterError(f'{name} = {value!r} is invalid: must be a number in '
-                                     f'{range_text(f.metadata)}')
-            else:
-                object.__setattr__(self, f.name, float(value))
-                value = float(value)
-            if not math.isfinite(value):
-                raise ParameterError(f'{name} = {value!r} is invalid: must be finite, in '
-                                     f'{range_text(f.metadata)}')
-            meta = f.metadata
-            too_low = meta['low'] is not None and (
-                value <= meta['low'] if meta['low_open'] else value < meta['low'])
-            too_high = meta['high'] is not None and (
-                value >= meta['high'] if meta['high_open'] else value > meta['high'])
-            if too_low or too_high:
-                raise ParameterError(f'{name} = {value:g} is out of range: allowed '
-                                     f'{range_text(meta)} ({meta["description"]})')
+            checked = check_value(f'{self.section}.{f.name}', value, f.metadata, f.default)
+            if checked is not value:
+                object.__setattr__(self, f.name, checked)
         self._check()
 
     def _check(self):
