@@ -3,7 +3,7 @@ Contact law between a link tip and a compliant surface (paper Section 4.2, Eqs. 
 
 Normal: Hertz with restitution hysteresis (Eq. 7), Fn = kn delta^p while the penetration grows
 and e kn delta^p while it shrinks. Switching the factor between 1 and e on the sign of the rate
-makes the force jump by (1 - e) kn delta^p: near equilibrium it chatters (model.md section 6),
+makes the force jump by (1 - e) kn delta^p: near equilibrium it chatters (docs/model.md section 4),
 and the jumps make the motion so sensitive to tiny differences that cycles never repeat (the CCI
 stays near 3 %). We keep the paper's rule for every rate faster than ``hysteresis_speed`` v0 and
 make the switch continuous below it:

@@ -10,7 +10,7 @@ with X_h the hinge where the base link meets the head. Read literally, the paper
 ``k (X_1F - X) - omega t`` sends the wave towards the tail, and a down tip at a trough then sweeps
 forward, which would drive the robot tail-first. We flip the sense of the helix (``+ phase``) so
 that the wave travels head-wards, the tips in contact sweep backwards, and the robot advances
-head-first along +x, the way its wave travels (model.md section 3).
+head-first along +x, the way its wave travels (docs/model.md section 3).
 
 Everything here depends on the phase only, so the dynamics uses a table of tip positions over one
 wave cycle (``TipTable``) instead of solving the chain at every step.

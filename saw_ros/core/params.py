@@ -6,8 +6,8 @@ that the ROS nodes (parameter descriptors), the YAML files in ``msg_config/`` an
 line all map onto the same definitions. Units are SI (m, s, kg, N, rad); degrees and cm appear
 only in human-facing output.
 
-Defaults are those of ``shared/docs/model.md`` section 8 (the paper's robot and surfaces, with the
-choices we made where the paper is silent).
+Defaults are those of ``docs/model.md`` section 8 (the paper's robot and surfaces, with the
+choices we made where the paper is silent, each with its reason).
 """
 from __future__ import annotations
 

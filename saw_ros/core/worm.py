@@ -3,14 +3,14 @@ The four-cell worm robot the paper compares the wave with (Section 7, Figures 19
 
 RECONSTRUCTION. The paper computes the worm with the analytic model of its reference [24]
 (Zarrouk, Sharf, Shoham: worm-robot locomotion on compliant surfaces), which is not at hand. What
-the paper says of it (``shared/docs/worm-model.md``): one cell moves per step while the others
+the paper says of it (``docs/worm-model.md``): one cell moves per step while the others
 anchor; anchoring cells deform the compliant surface and the robot slides back with it (no
 progress below about 300 N/m even on the level); a moving cell keeps some contact, so friction
 opposes it and pushes the robot back, more so at a higher COF. Two models follow from that.
 
-1. ``closed_form``: the quasi-static model of worm-model.md. N cells, stroke s, one cell moves per
-   step, N steps per cycle; the moving cell keeps a residual normal force F_m, each anchor has a
-   tangential stiffness k_t and a normal force F_a. The anchors carry
+1. ``closed_form``: the quasi-static model of docs/worm-model.md. N cells, stroke s, one cell
+   moves per step, N steps per cycle; the moving cell keeps a residual normal force F_m, each
+   anchor has a tangential stiffness k_t and a normal force F_a. The anchors carry
 
        P = mu F_m + m g sin(alpha) + F_ext
 

@@ -5,7 +5,7 @@ Used by the main job (``saw-ros demo``), the benchmarks and the integration test
 
 A node started in the background of a non-interactive shell ignores SIGINT, so every child gets
 its own session (``start_new_session``) and is stopped with SIGINT to its process group, then
-SIGTERM, then SIGKILL after timeouts (``shared/docs/ros-notes.md``).
+SIGTERM, then SIGKILL after timeouts (``docs/ros-notes.md``).
 """
 from __future__ import annotations
 

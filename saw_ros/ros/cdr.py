@@ -2,7 +2,7 @@
 Reading the few fields we need straight from CDR bytes (raw subscriptions), without rclpy.
 
 Deserialising a full message costs most of a Python subscriber's time at 1 kHz; a raw
-subscription plus struct.unpack_from costs a fraction of it (shared/docs/ros-notes.md).
+subscription plus struct.unpack_from costs a fraction of it (docs/ros-notes.md).
 Layout: XCDR1, a 4-byte encapsulation header, then fields aligned to their size from there.
 The other way round: ``CdrWriter`` encodes the constant parts of messages published as bytes
 (``ImageCdr`` here, the simulator's encoders in ``conversions``).

@@ -10,9 +10,10 @@ at the slope alpha; the point of the surface frame seen at the principal point i
 Pixel convention (OpenCV and ROS CameraInfo): pixel (u, v) has its centre at integer (u, v), u to
 the right, v down; the principal point defaults to the image centre ((W - 1) / 2, (H - 1) / 2).
 
-Surface frame (model.md): x along the surfaces in the direction of travel, y normal to them away
-from the bottom surface. With ``mirror`` False the robot travels to the right of the image (up to
-the right when climbing); ``mirror`` True is for videos in which it travels to the left.
+Surface frame (docs/model.md section 1): x along the surfaces in the direction of travel, y
+normal to them away from the bottom surface. With ``mirror`` False the robot travels to the
+right of the image (up to the right when climbing); ``mirror`` True is for videos in which it
+travels to the left.
 
 Mapping, with points as complex numbers x + i y:
     w = (s - c) e^(i alpha)           surface -> level world (horizontal, up), m

@@ -14,7 +14,7 @@ def scen(kt=1082.0, mu=1.0, slope_deg=0.0):
 
 
 def test_calibration_reproduces_the_papers_worm_numbers():
-    # worm-model.md: fitting 0.40 (0 deg) and 0.29 (90 deg) at COF 1 gives k ~ 532 N/m and
+    # docs/worm-model.md: fitting 0.40 (0 deg) and 0.29 (90 deg) at COF 1 gives k ~ 532 N/m and
     # mu F_m ~ 16.8 N; those are the calibrated constants, so the numbers come back exactly.
     assert W.FIGURE21_STIFFNESS == pytest.approx(532, abs=1)
     assert W.CALIBRATED_MOVING_FRICTION == pytest.approx(16.8, abs=0.1)

@@ -79,7 +79,7 @@ def test_image_cdr_is_what_rclpy_serialises_and_image_view_reads_it(frame, encod
     msg, pixels = _image(7, 5, encoding, frame, 16_666_667)
     ours = cdr.ImageCdr(7, 5, encoding, 21, frame)(pixels, 16_666_667)
     theirs = serialize_message(msg)
-    # Same message for rclpy; same length (rclpy's buffer may be longer, shared/docs/ros-notes.md,
+    # Same message for rclpy; same length (rclpy's buffer may be longer, docs/ros-notes.md,
     # and leaves its alignment padding uninitialised, so the bytes are not compared).
     assert deserialize_message(ours, Image) == msg
     assert len(theirs) >= len(ours) == 4 + 8 + 4 + len(frame) + 1 + (-(len(frame) + 1) % 4) \
