@@ -14,10 +14,11 @@ import sys
 import time
 
 from saw_ros.analysis.bag_frames import bag_video
+from saw_ros.analysis.report import format_comparison, write_report
 from saw_ros.bag.reader import BagReadError
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
 from saw_ros.cli.errors import UserError
-from saw_ros.graph.pipeline import format_comparison, PipelineError, run_pipeline, write_report
+from saw_ros.graph.pipeline import PipelineError, run_pipeline
 from saw_ros.interface.config import config_path
 
 HELP = 'run the full pipeline (simulator, camera, vision, comparison, recorder) and report'
@@ -60,7 +61,8 @@ def run(args):
     if result.bag_dir is not None and result.bag_dir.exists():
         print(f'recording           {result.bag_dir}')
         if result.comparison:
-            print(f'report              {write_report(result)}')
+            print(f'report              '
+                  f'{write_report(result.bag_dir, result.comparison, result.out_dir)}')
         if not args.no_video:
             try:
                 frames, fps = bag_video(result.bag_dir, out / 'camera.mp4')
