@@ -1,5 +1,5 @@
 """
-The paper's claims (``shared/docs/model.md`` section 10, ``worm-model.md``) held against ours.
+The paper's claims (``docs/model.md`` section 10, ``docs/worm-model.md``) held against ours.
 
 Each claim has the paper's value, ours, the tolerance and a verdict. Tolerances come from the
 paper's own wording, not from our numbers:
@@ -127,7 +127,7 @@ def ar_claims(data: Data) -> List[Claim]:
              f"{_f(_drop([level, vertical]))} against the paper's 0.11. How much the climb "
              'costs depends on how hard the tips are squeezed and how stiff the contact is in '
              'shear: the squeeze follows from the robot\'s height 2 (A + r), whose A ("3.7 cm") '
-             'and r the paper does not give consistently (model.md section 8), and from kn, '
+             'and r the paper does not give consistently (docs/model.md section 8), and from kn, '
              'which the paper gives as "about 1200 N/m" for a 1.5-power law (we use 15 500 '
              'N/m^1.5, matching its 7.2 N at 6 mm). The contact hysteresis (e, not given) also '
              'shapes the slip. At the stiffness the worm calibration implies for Figure 21 '

@@ -258,8 +258,8 @@ def report(data: Data, claims: List[Claim], figures_dir: str, elapsed: float,
         f'{elapsed:.1f} s). Do not edit by hand.',
         '',
         'Paper: Shachaf, Katz, Zarrouk, Biomimetics 2023. The claims are those of '
-        '`shared/docs/model.md` section 10 and `worm-model.md`; the model and its defaults are '
-        "in `model.md` section 8. Tolerances were fixed from the paper's wording (see "
+        '`docs/model.md` section 10 and `docs/worm-model.md`; the model and its defaults are '
+        "in `docs/model.md` section 8. Tolerances were fixed from the paper's wording (see "
         '`saw_ros/analysis/figures/claims.py`): +-1 deg for angles the paper quotes in whole '
         'degrees, '
         "+-10 % relative for AR values (the paper's own simulation matched its experiments to "
@@ -293,7 +293,7 @@ def report(data: Data, claims: List[Claim], figures_dir: str, elapsed: float,
     lines += [
         "- **The worm is a reconstruction.** The paper's worm model (its reference [24]) is not "
         'at hand. `saw_ros/core/worm.py` implements the quasi-static closed form of '
-        '`worm-model.md`: AR = max(0, 1 - N P / ((N - 1) k s)), P = mu F_m + m g sin(alpha), '
+        '`docs/worm-model.md`: AR = max(0, 1 - N P / ((N - 1) k s)), P = mu F_m + m g sin(alpha), '
         f"N = 4, s = 7 cm. Two constants are calibrated from the paper's worm numbers (W1, W2): "
         f'mu F_m = {worm_model.CALIBRATED_MOVING_FRICTION:.2f} N at COF 1 and the stiffness at '
         f'which Figure 21 must have been drawn, {worm_model.FIGURE21_STIFFNESS:.0f} N/m (at the '
