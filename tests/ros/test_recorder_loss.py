@@ -20,16 +20,16 @@ def test_loss_counter_counts_gaps_per_publisher():
     c = LossCounter()
     for s in (1, 2, 3, 6, 7, 10):            # 4, 5, 8, 9 lost
         c.add('/a', s)
-    for s in (5, 6, 9):                      # first seen at 5: nothing before counts; 7, 8 lost
+    for s in (5, 6, 9):                      # first seen at 5: 1-4 lost at the start; 7, 8
         c.add('/b', s)
     c.add('/b', 0)                           # no sequence number: not counted
-    assert c.lost == {'/a': 4, '/b': 2}
-    assert c.text() == 'lost 6 (/a: 4, /b: 2)'
+    assert c.lost == {'/a': 4, '/b': 6} and c.at_start == {'/a': 0, '/b': 4}
+    assert c.text() == 'lost 10 (/a: 4, /b: 6), 4 of them at the start (/b: 4)'
     # Two publishers on one topic, numbered independently and interleaved.
     c = LossCounter()
-    for s in (100, 1, 101, 2, 103, 3, 104, 5):   # 102 and 4 lost
+    for s in (100, 1, 101, 2, 103, 3, 104, 5):   # 1-99 at the start, 102 and 4 lost
         c.add('/c', s)
-    assert c.lost == {'/c': 2}
+    assert c.lost == {'/c': 101} and c.at_start == {'/c': 99}
     assert LossCounter().text() == 'lost 0'
 
 
@@ -75,11 +75,53 @@ def test_recorder_that_cannot_keep_up_reports_its_loss_per_topic(tmp_path):
     for m in reader.messages():
         seqs.setdefault(m.topic, []).append(m.sequence)
     for topic, s in seqs.items():
-        # what arrived + what was lost = every number from the first received to the last
-        assert len(s) + lost[topic] == s[-1] - s[0] + 1, (topic, len(s), lost[topic])
+        # what arrived + what was lost = every number from 1 to the last received
+        assert len(s) + lost[topic] == s[-1], (topic, len(s), lost[topic])
         assert s[-1] <= published[topic]
-    match = re.search(r'; lost (\d+) \((.*)\)$', final)
+    match = re.search(r'; lost (\d+) \(([^)]*)\)(, \d+ of them at the start \(.*\))?$', final)
     assert match, final
     assert int(match.group(1)) == sum(lost.values())
     reported = dict(part.rsplit(': ', 1) for part in match.group(2).split(', '))
     assert {t: int(n) for t, n in reported.items()} == {t: n for t, n in lost.items() if n}
+
+
+@pytest.mark.ros
+def test_recorder_reports_what_was_published_before_it_matched(tmp_path, ros_context):
+    # The publisher runs before the recorder exists: its first messages cannot be in the bag,
+    # and the recorder says how many from the first sequence number it receives.
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
+    gen = ManagedProcess('loadgen', node_command('loadgen', params={
+        'rate': 500.0, 'duration': 6.0, 'streams': 2, 'wait_subscribers': 0},
+        package='saw_ros.bench'), os.environ, tmp_path / 'logs')
+    node = Node('probe', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    heard = []
+    node.create_subscription(Clock, '/clock', heard.append, 10)
+    assert wait_for(lambda: heard, 30, spin=lambda t: executor.spin_once(timeout_sec=t)), \
+        gen.output()
+    out = tmp_path / 'bag'
+    rec = ManagedProcess('recorder', node_command('recorder', params={'output': str(out)}),
+                         os.environ, tmp_path / 'logs')
+    assert gen.wait(90) == 0, gen.output()
+    rec.signal(signal.SIGINT)
+    assert rec.wait(30) == 0, rec.output()
+    published = {line.split()[1]: int(line.split()[2]) for line in gen.output().splitlines()
+                 if line.startswith('published ')}
+    meta = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    lost = json.loads(meta['custom_data']['saw_ros.lost_messages'])
+    at_start = json.loads(meta['custom_data']['saw_ros.lost_at_start'])
+    first, counts = {}, {}
+    for m in BagReader(str(out)).messages():
+        first.setdefault(m.topic, m.sequence)
+        counts[m.topic] = counts.get(m.topic, 0) + 1
+    assert set(first) == set(published), (first, published)
+    for topic, n in published.items():
+        assert at_start[topic] == first[topic] - 1 >= 1, (topic, first, at_start)
+        assert counts[topic] + lost[topic] == n, (topic, counts, lost, n)
+    final = [line for line in rec.output().splitlines() if 'finished:' in line][0]
+    assert f', {sum(at_start.values())} of them at the start (' in final, final
+    assert 'published before the subscriptions matched' in rec.output()
+    node.destroy_node()

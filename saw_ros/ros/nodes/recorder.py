@@ -26,9 +26,11 @@ Loss. A subscription that cannot keep up loses the oldest messages of its queue 
 a publisher's history can overwrite messages not yet delivered. Either way the publication
 sequence numbers of what arrives have gaps: the final line gives the messages lost per topic,
 ``lost N (topic: n, ...)``, and metadata.yaml keeps them in ``custom_data``
-(``saw_ros.lost_messages``, JSON). Jazzy's rclpy gives no publisher GID in the message info, so
-messages of several publishers on one topic are told apart by their sequence numbers
-(``LossCounter``); loss before the first message of a publisher is not seen.
+(``saw_ros.lost_messages``, JSON). Sequence numbers start at 1, so what a publisher sent before
+the subscription matched is known too: counted in the loss, and said apart (``..., M of them at
+the start (topic: m, ...)``; ``saw_ros.lost_at_start``). Jazzy's rclpy gives no publisher GID in
+the message info, so messages of several publishers on one topic are told apart by their
+sequence numbers (``LossCounter``).
 """
 from __future__ import annotations
 
@@ -129,17 +131,21 @@ def default_output(bags_dir: str, label: str) -> str:
 
 class LossCounter:
     """
-    Messages lost per topic, from gaps in the publication sequence numbers of what arrives.
+    Messages lost per topic, from the publication sequence numbers of what arrives.
 
     A publisher numbers its messages 1, 2, 3... (the DDS writer's sequence number, in rclpy's
-    message info as ``publication_sequence_number``). Without the publisher's GID (not in
-    Jazzy's rclpy message info), a message continues the publisher whose last number is the
-    closest below its own; a number at or below every last one starts a new publisher (numbers
-    start again at 1). Sequence number 0 means the middleware does not give one: not counted.
+    message info as ``publication_sequence_number``): gaps are messages lost in between, and a
+    first number above 1 says how many the publisher sent before the recorder's first message
+    (published before its subscription matched: lost at the start, counted in ``at_start`` as
+    well). Without the publisher's GID (not in Jazzy's rclpy message info), a message continues
+    the publisher whose last number is the closest below its own; a number at or below every
+    last one starts a new publisher (numbers start again at 1). Sequence number 0 means the
+    middleware does not give one: not counted.
     """
 
     def __init__(self):
-        self.lost: Dict[str, int] = {}
+        self.lost: Dict[str, int] = {}            # topic: all lost (at the start and between)
+        self.at_start: Dict[str, int] = {}        # topic: of them, before the first received
         self._last: Dict[str, List[int]] = {}     # topic: last number of each publisher seen
 
     def add(self, topic: str, sequence: int) -> None:
@@ -148,7 +154,7 @@ class LossCounter:
         lasts = self._last.get(topic)
         if lasts is None:
             self._last[topic] = [sequence]
-            self.lost.setdefault(topic, 0)
+            self.lost[topic] = self.at_start[topic] = sequence - 1
             return
         if len(lasts) == 1 and lasts[0] < sequence:            # the usual case: one publisher
             self.lost[topic] += sequence - lasts[0] - 1
@@ -158,8 +164,10 @@ class LossCounter:
         for i, last in enumerate(lasts):
             if last < sequence and (best is None or last > lasts[best]):
                 best = i
-        if best is None:
+        if best is None:                                      # a publisher not seen before
             lasts.append(sequence)
+            self.lost[topic] += sequence - 1
+            self.at_start[topic] += sequence - 1
         else:
             self.lost[topic] += sequence - lasts[best] - 1
             lasts[best] = sequence
@@ -168,9 +176,18 @@ class LossCounter:
         return sum(self.lost.values())
 
     def text(self) -> str:
-        """``lost 0`` or ``lost 12 (/saw/camera/image_raw: 12)``: the topics that lost any."""
-        losing = ', '.join(f'{t}: {n}' for t, n in sorted(self.lost.items()) if n)
-        return f'lost {self.total()}' + (f' ({losing})' if losing else '')
+        """
+        Return ``lost 0``, or ``lost 12 (/saw/camera/image_raw: 12)``: the topics that lost any.
+
+        Then those lost at the start, if any: ``..., 900 of them at the start (/clock: 900)``.
+        """
+        def listed(counts):
+            return ', '.join(f'{t}: {n}' for t, n in sorted(counts.items()) if n)
+        text = f'lost {self.total()}' + (f' ({listed(self.lost)})' if self.total() else '')
+        start = sum(self.at_start.values())
+        if start:
+            text += f', {start} of them at the start ({listed(self.at_start)})'
+        return text
 
 
 def _entry(topic: str, data: bytes, info: dict) -> tuple:
@@ -422,18 +439,25 @@ class Recorder(Node):
         self._queue.put(_STOP)
         self._writer.join()
         lost = {t: self.losses.lost.get(t, 0) for t in self._counts()}
+        at_start = {t: self.losses.at_start.get(t, 0) for t in self._counts()}
         self.bag.custom_data = dict(self.bag.custom_data or {}, **{
-            'saw_ros.lost_messages': json.dumps(lost, sort_keys=True)})
+            'saw_ros.lost_messages': json.dumps(lost, sort_keys=True),
+            'saw_ros.lost_at_start': json.dumps(at_start, sort_keys=True)})
         self.bag.close()
         counts = ', '.join(f'{t}: {n}' for t, n in self._counts().items())
         done = (f'bag {self.bag.directory} finished: {self.bag.message_count} messages '
                 f'({counts}); {self.losses.text()}')
         warning = None
-        if self.losses.total():
+        start = sum(self.losses.at_start.values())
+        if self.losses.total() > start:
             warning = (f'{self.losses.text()}: messages lost before they were recorded (gaps '
                        f"in the publishers' sequence numbers); the recorder or the machine "
                        f'did not keep up: record fewer topics (the raw camera frames above all) '
                        f'or raise queue_depth')
+        elif start:
+            warning = (f'{self.losses.text()}: published before the subscriptions matched '
+                       "(the publishers' first sequence numbers); start the recorder first and "
+                       "the publishers after its 'recording <topic>' lines")
         if self.context.ok():
             self.get_logger().info(done)
             if warning:
