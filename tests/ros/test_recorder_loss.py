@@ -31,6 +31,12 @@ def test_loss_counter_counts_gaps_per_publisher():
         c.add('/c', s)
     assert c.lost == {'/c': 101} and c.at_start == {'/c': 99}
     assert LossCounter().text() == 'lost 0'
+    # A latched topic's late subscriber gets the last message by design: no loss at the start.
+    c = LossCounter()
+    c.latched.add('/l')
+    for s in (7, 8, 10):
+        c.add('/l', s)
+    assert c.lost == {'/l': 1} and c.at_start == {'/l': 0}
 
 
 def _record(tmp_path, rec_params, gen_params):

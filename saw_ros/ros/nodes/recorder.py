@@ -140,21 +140,25 @@ class LossCounter:
     well). Without the publisher's GID (not in Jazzy's rclpy message info), a message continues
     the publisher whose last number is the closest below its own; a number at or below every
     last one starts a new publisher (numbers start again at 1). Sequence number 0 means the
-    middleware does not give one: not counted.
+    middleware does not give one: not counted. On ``latched`` topics (transient local: a late
+    subscriber gets the publisher's last messages, the state it means to keep) the start is not
+    a loss.
     """
 
     def __init__(self):
         self.lost: Dict[str, int] = {}            # topic: all lost (at the start and between)
         self.at_start: Dict[str, int] = {}        # topic: of them, before the first received
+        self.latched: set = set()
         self._last: Dict[str, List[int]] = {}     # topic: last number of each publisher seen
 
     def add(self, topic: str, sequence: int) -> None:
         if not sequence:
             return
         lasts = self._last.get(topic)
+        start = 0 if topic in self.latched else sequence - 1
         if lasts is None:
             self._last[topic] = [sequence]
-            self.lost[topic] = self.at_start[topic] = sequence - 1
+            self.lost[topic] = self.at_start[topic] = start
             return
         if len(lasts) == 1 and lasts[0] < sequence:            # the usual case: one publisher
             self.lost[topic] += sequence - lasts[0] - 1
@@ -166,8 +170,8 @@ class LossCounter:
                 best = i
         if best is None:                                      # a publisher not seen before
             lasts.append(sequence)
-            self.lost[topic] += sequence - 1
-            self.at_start[topic] += sequence - 1
+            self.lost[topic] += start
+            self.at_start[topic] += start
         else:
             self.lost[topic] += sequence - lasts[best] - 1
             lasts[best] = sequence
@@ -415,6 +419,8 @@ class Recorder(Node):
                 return
             if item[0] != 'topic':
                 count(item[0], item[4])
+            elif all(q['durability'] == 'transient_local' for q in item[3]):
+                self.losses.latched.add(item[1])
             if self._write_error is not None:
                 continue
             try:
