@@ -14,6 +14,7 @@ import numpy as np
 from saw_ros.bag.reader import BagReader, BagReadError
 from saw_ros.interface import topics
 from saw_ros.vision import images
+from saw_ros.vision.camera import FPS
 from saw_ros.vision.video import VideoWriter
 
 FPS_SAMPLE = 61         # stamps the frame rate is measured on (60 intervals)
@@ -95,4 +96,4 @@ def fps_of(reader: BagReader, topic: str) -> float:
             break
     gaps = np.diff(stamps)
     gaps = gaps[gaps > 0]
-    return round(1e9 / float(np.median(gaps)), 3) if len(gaps) else 60.0
+    return round(1e9 / float(np.median(gaps)), 3) if len(gaps) else FPS

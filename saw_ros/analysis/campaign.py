@@ -22,6 +22,7 @@ from saw_ros.analysis.compare import find_reference, load_reference, reference_e
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.metrics import run_turns, TURN
 from saw_ros.core.pool import LocalPool, Pool
+from saw_ros.vision.camera import FPS
 
 PAPER_SLOPES_DEG = (-20.0, -10.0, 0.0, 10.0, 20.0)
 PAPER_VOLTAGES = (4.0, 5.0, 6.0, 7.0)
@@ -75,7 +76,7 @@ def _track_condition(job) -> Tuple[np.ndarray, np.ndarray, int]:
 
 def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
                  voltages: Sequence[float] = PAPER_VOLTAGES, base: Optional[Scenario] = None,
-                 reference_file: Optional[Path] = None, workers: int = 2, fps: float = 60.0,
+                 reference_file: Optional[Path] = None, workers: int = 2, fps: float = FPS,
                  camera: Optional[Dict[str, float]] = None,
                  progress=None, pool: Optional[Pool] = None) -> List[ConditionResult]:
     """

@@ -38,6 +38,7 @@ from saw_ros.analysis.compare import RunComparator
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.kinematics import v_theory
 from saw_ros.core.metrics import run_frequency, run_turns
+from saw_ros.vision.camera import FPS
 
 MANIFEST_COLUMNS = ('video', 'slope_deg', 'voltage_V', 'frequency_hz', 'px_per_m',
                     'marker_spacing_m', 'notes')
@@ -356,7 +357,7 @@ def clutter_for(camera, gap: float, t_end: float, flicker: float = 0.0):
 
 
 def make_clip(scenario: Scenario, path, start: float = 1.2, duration: float = 2.0,
-              fps: float = 60.0, size=SAMPLE_SIZE, scale: float = SAMPLE_SCALE,
+              fps: float = FPS, size=SAMPLE_SIZE, scale: float = SAMPLE_SCALE,
               cluttered: bool = False, noise: float = 0.0, texture: bool = False) -> dict:
     """
     Simulate ``scenario`` and write the frames of [start, start + duration) as an .mp4.

@@ -12,6 +12,7 @@ from typing import Dict
 
 from saw_ros.bag.reader import BagReader
 from saw_ros.interface import topics
+from saw_ros.vision.camera import FPS
 
 
 def write_report(bag_dir: Path, comparison: Dict[str, object], out_dir: Path) -> Path:
@@ -40,8 +41,8 @@ def write_report(bag_dir: Path, comparison: Dict[str, object], out_dir: Path) ->
         v = np.gradient(truth[:, 1], truth[:, 0])
         ax2.plot(truth[:, 0], v * 100, lw=0.6, alpha=0.6, label='simulation')
     if len(tracked):
-        ax1.plot(tracked[:, 0], tracked[:, 1] * 100, '.', ms=2, label='tracking (60 fps)')
-        k = 15                                 # a quarter of a second of frames
+        ax1.plot(tracked[:, 0], tracked[:, 1] * 100, '.', ms=2, label=f'tracking ({FPS:g} fps)')
+        k = round(FPS / 4)                     # a quarter of a second of frames
         if len(tracked) > 2 * k:
             v = (tracked[k:, 1] - tracked[:-k, 1]) / (tracked[k:, 0] - tracked[:-k, 0])
             ax2.plot(0.5 * (tracked[k:, 0] + tracked[:-k, 0]), v * 100, label='tracking '

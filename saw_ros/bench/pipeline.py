@@ -51,6 +51,7 @@ import time
 from typing import Dict, List, Optional
 
 from saw_ros.interface import topics
+from saw_ros.vision.camera import FPS     # the camera node's default, which the graph runs
 
 KEYS = ('pipeline_max_realtime_factor', 'pipeline_lost_messages', 'pipeline_cpu_share',
         'pipeline_images_max_realtime_factor', 'pipeline_images_lost_messages',
@@ -60,7 +61,6 @@ DURATION = 6.0          # s of simulated time per rung (steady state is reached 
 QUICK_DURATION = 5.0
 UP = (1.0, 1.25, 1.5, 2.0)
 DOWN = (0.9, 0.8, 0.7, 0.6, 0.5, 0.25)
-FPS = 60.0
 MAX_LAG = 1.0           # s of wall time the last tracking status may come after the last step
 NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder')
 
@@ -135,13 +135,14 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     """Return the loss figures of one run (see the module docstring)."""
     from saw_ros.bag import BagReader
     from saw_ros.ros.cdr import array_stamp_ns, stamp_ns
+    from saw_ros.ros.markers import RATE as MARKER_RATE
     streams = topics.step_topics()  # /clock + 5 streams
     n = int(round(duration / dt))
     frames = int(round(duration * FPS))
     step_ns = int(round(dt * 1e9))
     frame_stamps = [int(round(k * 1e9 / FPS)) for k in range(1, frames + 1)]
     # /saw/markers: the first step of every 1/60 s slot of stamps (saw_ros.ros.markers).
-    slots = sorted({int(k * step_ns * FPS // 1e9 + 1e-9): k * step_ns
+    slots = sorted({int(k * step_ns * MARKER_RATE // 1e9 + 1e-9): k * step_ns
                     for k in range(n, 0, -1)}.values())
     problems: List[str] = []
     problems_note = ''

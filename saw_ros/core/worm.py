@@ -45,7 +45,7 @@ import numpy as np
 
 from saw_ros.core.contact import hysteresis_factor
 from saw_ros.core.dynamics import GRAVITY
-from saw_ros.core.params import ParameterError, Scenario
+from saw_ros.core.params import ParameterError, RobotParams, Scenario
 
 # The two calibrated constants (see the module docstring): solved from AR 0.40 (0 deg) and
 # 0.29 (90 deg) at COF 1 with N = 4, s = 7 cm, m g = 3.07 N.
@@ -53,7 +53,7 @@ PAPER_WORM_AR_LEVEL = 0.40
 PAPER_WORM_AR_VERTICAL = 0.29
 
 
-def _calibrate(cells=4, stroke=0.07, weight=0.313 * GRAVITY):
+def _calibrate(cells=4, stroke=0.07, weight=RobotParams.mass * GRAVITY):
     """(mu F_m in N, k in N/m) giving the paper's two worm ARs: AR = 1 - N P / ((N - 1) k s)."""
     c = (cells - 1) * stroke / cells
     load_over_k_level = (1.0 - PAPER_WORM_AR_LEVEL) * c          # P0 / k
@@ -71,7 +71,7 @@ class WormParams:
 
     cells: int = 4
     stroke: float = 0.07                 # m, the SAW's advance per cycle on a rigid surface
-    mass: float = 0.313                  # kg, the same robot mass as the wave
+    mass: float = RobotParams.mass       # kg, the same robot mass as the wave
     moving_normal_force: float = CALIBRATED_MOVING_FRICTION   # N, F_m (calibrated at mu = 1)
     anchor_normal_force: Optional[float] = None    # N, F_a; None: from the gap and surface law
     height: float = 0.057                # m, an expanded cell as tall as the wave robot

@@ -37,6 +37,10 @@ import numpy as np
 
 from saw_ros.core.params import spec
 
+# The paper's experiment was filmed at 60 fps (Sec. 6: nearly 60 measurements per wave cycle):
+# the virtual camera's frame rate unless told otherwise.
+FPS = 60.0
+
 
 @dataclass(frozen=True)
 class CameraModel:

@@ -18,7 +18,7 @@ import numpy as np
 
 from saw_ros.core import Scenario, simulate, Trajectory
 from saw_ros.core.metrics import run_turns, TURN
-from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.camera import CameraModel, FPS
 from saw_ros.vision.frames import pose_interpolator, Renderer, RenderOptions, RobotPose
 from saw_ros.vision.scene import Clutter, HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, SceneOptions
 from saw_ros.vision.tracker import FrameResult, Tracker, TrackerConfig
@@ -36,7 +36,7 @@ class Run:
     pose_at: Callable[[float], RobotPose]
     trajectory: Optional[Trajectory] = None     # the simulation itself
 
-    def frame_times(self, fps: float = 60.0, start: float = 0.0) -> np.ndarray:
+    def frame_times(self, fps: float = FPS, start: float = 0.0) -> np.ndarray:
         n = int(math.floor((self.t[-1] - start) * fps + 1e-9))
         return start + np.arange(1, n) / fps
 
@@ -76,7 +76,7 @@ def frames(run: Run, renderer: Renderer, times: Iterable[float],
     fd, path = tempfile.mkstemp(suffix='.mp4')
     os.close(fd)
     try:
-        with VideoWriter(path, 60.0, (cam.width, cam.height)) as writer:
+        with VideoWriter(path, FPS, (cam.width, cam.height)) as writer:
             for k, t in enumerate(times):
                 writer.write(renderer.render(run.pose_at(t), hidden(k), run.pose_at, t))
         for (k, _, frame), t in zip(read_frames(path), times):

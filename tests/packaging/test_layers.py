@@ -1,6 +1,7 @@
 """The tree's layers: imports point down only, and the pure layers never load rclpy."""
 import ast
 from pathlib import Path
+import re
 import subprocess
 import sys
 
@@ -71,3 +72,13 @@ print(bad)
                             timeout=120)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == '[]'
+
+
+def test_the_readme_names_the_layers_as_this_test_does():
+    text = ' '.join((PACKAGE.parent / 'README.md').read_text().split())
+    below_ros = re.search(r'Imports point down only: (.*?) are the pure layers below `ros`', text)
+    assert below_ros, 'README.md: the sentence "Imports point down only: ..." is gone'
+    assert set(re.findall(r'`(\w+)`', below_ros.group(1))) == ALLOWED['ros']
+    no_rclpy = re.search(r'Layers that never load rclpy \([^)]*\): ([^.]*)\.', text)
+    assert no_rclpy, 'README.md: the sentence "Layers that never load rclpy ..." is gone'
+    assert tuple(re.findall(r'`(\w+)`', no_rclpy.group(1))) == PURE

@@ -15,10 +15,15 @@ import numpy as np
 
 from saw_ros.analysis.figures import sweeps
 from saw_ros.analysis.figures.claims import _contact_law_zero_stiffness, Claim
-from saw_ros.analysis.figures.sweeps import COFS, Data, DEFAULT_KT, FIG10_SLOPES, FIG21_KT, GAPS_MM
+from saw_ros.analysis.figures.sweeps import (COFS, Data, DEFAULT_GAP_MM, DEFAULT_KT, DEFAULT_MU,
+                                             FIG10_SLOPES, FIG21_KT, GAPS_MM)
 from saw_ros.core import worm as worm_model
 
 DPI = 100
+# The defaults the titles name, from the parameters (core.params).
+GAP = f'{DEFAULT_GAP_MM:g} mm'
+KT = f'{DEFAULT_KT:g} N/m'
+COF = f'COF {DEFAULT_MU:g}'
 
 
 def _plt():
@@ -96,7 +101,7 @@ def figure7(data: Data, out: Path) -> List[Path]:
     axes[1, 0].legend(fontsize=7)
     for ax in axes[1]:
         ax.set_xlabel('t (s)')
-    fig.suptitle('Figure 7: from rest at 1 Hz, defaults (45 mm, level, 1082 N/m, COF 1)',
+    fig.suptitle(f'Figure 7: from rest at 1 Hz, defaults ({GAP}, level, {KT}, {COF})',
                  fontsize=10)
     _save(fig, out / 'figure7.png')
     return [out / 'figure7.csv', out / 'figure7.png']
@@ -161,7 +166,7 @@ def figure9(data, out):
     series = [(f'gap {g:.0f} mm', f'ar_gap_{g:.0f}mm', [data.ar(slope=x, gap=g) for x in s])
               for g in GAPS_MM]
     return _ar_vs(data, out, 'figure9', s, series, 'slope (deg)',
-                  'Figure 9: AR vs slope for three gaps (1082 N/m, COF 1)')
+                  f'Figure 9: AR vs slope for three gaps ({KT}, {COF})')
 
 
 def figure10(data, out):
@@ -169,7 +174,7 @@ def figure10(data, out):
     series = [(f'{s:.0f} deg', f'ar_{s:.0f}deg', [data.ar(slope=s, kt=x) for x in k])
               for s in FIG10_SLOPES]
     return _ar_vs(data, out, 'figure10', k, series, 'tangential stiffness (N/m)',
-                  'Figure 10: AR vs surface stiffness for four slopes (45 mm, COF 1)',
+                  f'Figure 10: AR vs surface stiffness for four slopes ({GAP}, {COF})',
                   header_x='stiffness_N_per_m')
 
 
@@ -178,7 +183,7 @@ def figure11(data, out):
     series = [(f'COF {mu:g}', f'ar_cof_{mu:g}', [data.ar(slope=x, mu=mu) for x in s])
               for mu in COFS]
     return _ar_vs(data, out, 'figure11', s, series, 'slope (deg)',
-                  'Figure 11: AR vs slope for three COFs (45 mm, 1082 N/m)')
+                  f'Figure 11: AR vs slope for three COFs ({GAP}, {KT})')
 
 
 def figure20(data, out):
@@ -197,7 +202,8 @@ def figure20(data, out):
         series.append((f'worm {s:.0f} deg (contact-law)', f'worm_contact_law_{s:.0f}deg',
                        [r.advance_ratio for r in cl[j * n:(j + 1) * n]]))
     return _ar_vs(data, out, 'figure20', k, series, 'tangential stiffness (N/m)',
-                  'Figure 20: wave (simulation) vs worm (closed form; thin: contact law), COF 1',
+                  'Figure 20: wave (simulation) vs worm (closed form; thin: contact law), '
+                  f'{COF}',
                   header_x='stiffness_N_per_m')
 
 
@@ -212,7 +218,7 @@ def figure21(data, out):
                        [sweeps.worm_ar(x, FIG21_KT, mu).advance_ratio for x in s]))
     return _ar_vs(data, out, 'figure21', s, series, 'slope (deg)',
                   f"Figure 21: wave vs worm at {FIG21_KT:.0f} N/m (the worm calibration's "
-                  'stiffness), 45 mm')
+                  f'stiffness), {GAP}')
 
 
 RENDER = {'4': figure4, '7': figure7, '8': figure8, '9': figure9, '10': figure10,

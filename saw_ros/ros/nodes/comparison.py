@@ -40,6 +40,7 @@ from saw_ros.core.params import Scenario, spec_meta
 from saw_ros.interface import topics
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
+from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, SIMULATOR_EXCLUDED
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
@@ -238,11 +239,11 @@ class ComparisonNode(Node):
 
     def _on_truth(self, data: bytes):
         t_ns, x, _y, _theta = cdr.pose_stamped_ns(data)
-        t = t_ns / 1e9
+        t = t_ns / NS_PER_S
         if self._last_truth_ns is not None and t_ns < self._last_truth_ns:
             self.get_logger().warning(
-                f'simulated time went back from {self._last_truth_ns / 1e9:.3f} s to {t:.3f} s'
-                ' (a replay restarted?): comparison restarted')
+                f'simulated time went back from {self._last_truth_ns / NS_PER_S:.3f} s to '
+                f'{t:.3f} s (a replay restarted?): comparison restarted')
         self._last_truth_ns = t_ns
         self._last_truth_wall = time.monotonic()     # (rclpy's Clock.now() costs 10x, per pose)
         self.comparator.add_truth(t, x)
@@ -250,10 +251,10 @@ class ComparisonNode(Node):
     def _on_helix(self, data: bytes):
         t_ns, angle = self._helix(data)
         if angle is not None:
-            self.comparator.add_helix(t_ns / 1e9, angle)
+            self.comparator.add_helix(t_ns / NS_PER_S, angle)
 
     def _on_tracked(self, msg: PoseStamped):
-        self.comparator.add_tracked(conv.stamp_ns(msg.header.stamp) / 1e9,
+        self.comparator.add_tracked(conv.stamp_ns(msg.header.stamp) / NS_PER_S,
                                     msg.pose.position.x)
 
     # -- reports -----------------------------------------------------------------------------

@@ -38,13 +38,13 @@ from rosgraph_msgs.msg import Clock as ClockMsg  # noqa: E402
 from saw_ros.interface import topics  # noqa: E402
 from saw_ros.ros import cdr  # noqa: E402
 from saw_ros.ros import conversions as conv  # noqa: E402
+from saw_ros.ros.cdr import NS_PER_S  # noqa: E402
 from saw_ros.ros.qos import CLOCK_QOS, image_publisher_qos  # noqa: E402
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_node  # noqa: E402
 from saw_ros.vision import one_opencv_thread  # noqa: E402
 from saw_ros.vision.video import VideoError  # noqa: E402
 from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
 
-NS = 1_000_000_000
 IMAGE_EXTENSIONS = ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.tiff', '.ppm', '.pgm')
 TICK = 0.002            # s, wall-clock timer period of the publishing loop
 INFO_GRACE = 2.0        # s to wait for camera-info subscribers once the image ones matched
@@ -235,7 +235,7 @@ class VideoSourceNode(Node):
             if frame is None:
                 self.done = True
                 break
-            self._publish(frame, int(round(self.sent * NS / self.fps)))
+            self._publish(frame, int(round(self.sent * NS_PER_S / self.fps)))
             self.sent += 1
 
     def _subscribers_ready(self) -> bool:
