@@ -131,7 +131,8 @@ class TopicSummary:
         return (self.count - 1) * 1e9 / (self.last - self.first)
 
 
-def _channel_qos(channel: Channel) -> List[dict]:
+def channel_qos(channel: Channel) -> List[dict]:
+    """Return the offered QoS profiles a channel's metadata holds (rosbag2's YAML text)."""
     text = channel.metadata.get('offered_qos_profiles', '')
     try:
         profiles = yaml.safe_load(text) if text else []
@@ -737,7 +738,7 @@ class BagReader:
                 if t is None:
                     t = out[m.topic] = TopicSummary(
                         m.topic, m.type, m.channel.message_encoding,
-                        offered_qos_profiles=_channel_qos(m.channel),
+                        offered_qos_profiles=channel_qos(m.channel),
                         type_hash=m.channel.metadata.get('topic_type_hash', ''))
                 t.count += 1
                 if t.first is None or m.log_time < t.first:
@@ -761,13 +762,14 @@ class BagReader:
         self._topics = out
         return out
 
-    def shortfall(self) -> Optional[str]:
+    def shortfall(self, hint: bool = True) -> Optional[str]:
         """
         Say in one line what an unfinished bag lacks; None when the scan found it complete.
 
         After a full scan (``topics()``, ``info()``). Where metadata.yaml is there (a copy cut
         short) its counts give what is missing per topic and its end the log time range lost;
-        without it (the recorder was killed) only where the readable part ends is known.
+        without it (the recorder was killed) only where the readable part ends is known. ``hint``
+        adds the command that makes it a finished bag.
         """
         if self.complete:
             return None
@@ -797,7 +799,8 @@ class BagReader:
             text += (f'; whatever came after log time {stamp(last)} is lost (no metadata.yaml '
                      'says how much: a killed recorder loses what it had not yet written, about '
                      'its last 0.5 s and one chunk)' if last is not None else '')
-        return text + f'; saw-ros bag reindex {self.path} makes it a finished bag'
+        return text + (f'; saw-ros bag reindex {self.path} makes it a finished bag' if hint
+                       else '')
 
     def info(self) -> dict:
         topics = self.topics()

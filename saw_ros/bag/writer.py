@@ -79,6 +79,42 @@ def qos_profile_dict(history='unknown', depth=0, reliability='reliable', durabil
             'avoid_ros_namespace_conventions': bool(avoid_ros_namespace_conventions)}
 
 
+def bag_metadata(file_name: str, topics, start: Optional[int], end: Optional[int],
+                 custom_data: Optional[Dict[str, str]]) -> dict:
+    """
+    Return the ``rosbag2_bagfile_information`` mapping (metadata.yaml version 9) of one file.
+
+    ``topics``: (name, type, serialization format, offered QoS profiles, type hash, message
+    count) each; ``start``/``end``: log times of the first and last message (None: no message).
+    """
+    first = start if start is not None else time.time_ns()
+    duration = (end - start) if start is not None else 0
+    count = sum(t[5] for t in topics)
+    return {
+        'version': 9,
+        'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': duration},
+        'starting_time': {'nanoseconds_since_epoch': first},
+        'message_count': count,
+        'topics_with_message_count': [
+            {'topic_metadata': {'name': name, 'type': type_name,
+                                'serialization_format': serialization_format,
+                                'offered_qos_profiles': qos,
+                                'type_description_hash': hash_string},
+             'message_count': n}
+            for name, type_name, serialization_format, qos, hash_string, n in topics],
+        'compression_format': '',
+        'compression_mode': '',
+        'relative_file_paths': [file_name],
+        'files': [{'path': file_name,
+                   'starting_time': {'nanoseconds_since_epoch': first},
+                   'duration': {'nanoseconds': duration},
+                   'message_count': count}],
+        'custom_data': custom_data,
+        'ros_distro': ROS_DISTRO,
+    }
+
+
 class _IndentedDumper(yaml.SafeDumper):
     """Lists indented under their key, as yaml-cpp (rosbag2) writes them."""
 
@@ -361,30 +397,10 @@ class BagWriter:
     # ---- metadata
     def metadata(self) -> dict:
         """Return the ``rosbag2_bagfile_information`` mapping (metadata.yaml version 9)."""
-        start = self._start if self._start is not None else time.time_ns()
-        duration = (self._end - self._start) if self._start is not None else 0
-        return {
-            'version': 9,
-            'storage_identifier': 'mcap',
-            'duration': {'nanoseconds': duration},
-            'starting_time': {'nanoseconds_since_epoch': start},
-            'message_count': self.message_count,
-            'topics_with_message_count': [
-                {'topic_metadata': {'name': t.name, 'type': t.type,
-                                    'serialization_format': t.serialization_format,
-                                    'offered_qos_profiles': t.qos,
-                                    'type_description_hash': t.hash},
-                 'message_count': t.count} for t in self._topics.values()],
-            'compression_format': '',
-            'compression_mode': '',
-            'relative_file_paths': [self.file_name],
-            'files': [{'path': self.file_name,
-                       'starting_time': {'nanoseconds_since_epoch': start},
-                       'duration': {'nanoseconds': duration},
-                       'message_count': self.message_count}],
-            'custom_data': self.custom_data,
-            'ros_distro': ROS_DISTRO,
-        }
+        return bag_metadata(
+            self.file_name, [(t.name, t.type, t.serialization_format, t.qos, t.hash, t.count)
+                             for t in self._topics.values()],
+            self._start, self._end, self.custom_data)
 
     def close(self) -> None:
         """

@@ -10,6 +10,9 @@ Inspect and record bags (rosbag2 directories with MCAP storage).
   saw-ros bag record [...]    run the recorder node until Ctrl-C (same as
                               ``ros2 run saw_ros recorder``; see docs/bags.md)
   saw-ros bag play BAG [...]  run the player node on BAG
+  saw-ros bag reindex BAG     an unfinished bag (recorder killed, copy cut short) made a
+                              finished one that every MCAP reader opens: summary, indexes and
+                              metadata.yaml (``ros2 bag reindex``); the original is kept
   saw-ros bag video BAG [-o camera.mp4]
                               the camera frames of a recording (its compressed stream, or
                               the raw one) as a video you can watch or track, at the rate
@@ -24,7 +27,7 @@ import sys
 
 from saw_ros.cli.errors import UserError
 
-HELP = 'bag info / record / play / video (rosbag2-compatible MCAP bags)'
+HELP = 'bag info / record / play / video / reindex (rosbag2-compatible MCAP bags)'
 
 
 def add_arguments(p):
@@ -40,6 +43,9 @@ def add_arguments(p):
     play = sub.add_parser('play', help='play a bag onto its topics, with /clock')
     play.add_argument('bag')
     play.add_argument('-r', '--rate', type=float, default=1.0, help='speed factor')
+    reindex = sub.add_parser('reindex', help='make an unfinished bag (recorder killed, copy '
+                             'cut short) a finished one, as ros2 bag reindex')
+    reindex.add_argument('bag', help='bag directory')
     video = sub.add_parser('video', help="write a recording's camera frames to an .mp4")
     video.add_argument('bag')
     video.add_argument('-o', '--output', default='camera.mp4', help='video file (camera.mp4)')
@@ -129,6 +135,14 @@ def run(args):
         if not os.path.exists(args.bag):
             raise UserError(f'no bag at {args.bag}')
         return _node('player', {'bag': os.path.abspath(args.bag), 'rate': float(args.rate)})
+    if args.bag_command == 'reindex':
+        from saw_ros.bag.reindex import reindex
+        from saw_ros.bag.reader import BagReadError
+        try:
+            print(reindex(args.bag).describe())
+        except (BagReadError, OSError) as exc:
+            raise UserError(f'cannot reindex {args.bag}: {exc}') from None
+        return 0
     if args.bag_command == 'video':
         from saw_ros.analysis.bag_frames import bag_video
         from saw_ros.bag.reader import BagReadError

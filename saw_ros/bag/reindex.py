@@ -1,0 +1,154 @@
+"""
+Make an unfinished bag a finished one: ``saw-ros bag reindex BAG`` (rosbag2's ``reindex``).
+
+A recorder killed (or a disk full, a copy cut short) leaves MCAP files without their summary:
+our reader reads them up to the last complete record, but the standard ``mcap`` reader's seeking
+reader needs the summary's chunk indexes, and ``ros2 bag`` needs metadata.yaml. Reindexing
+copies every readable message (damaged chunks skipped, as ``--salvage`` reads) into a new file
+with the same schemas, channels, times and sequence numbers, finishes it (chunk and message
+indexes, statistics, the rosbag2 Metadata record) and writes metadata.yaml.
+
+Nothing is lost by doing it and nothing leaves the bag directory: each file is written under a
+temporary name beside it and moved into place only when complete; the original is kept beside it
+as ``<file>.unfinished`` (no longer a ``.mcap``: readers skip it; delete it once satisfied).
+metadata.yaml's ``custom_data`` keeps what it held (the recorder's loss counts, for a copy cut
+short) and says what the reindexing found missing (``saw_ros.reindexed``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import os
+from typing import Dict, List, Optional
+
+from mcap.writer import CompressionType, Writer
+from saw_ros.bag.reader import BagReader, BagReadError, channel_qos, inside
+from saw_ros.bag.writer import bag_metadata, DEFAULT_CHUNK_SIZE, dump_yaml
+SUFFIX = '.unfinished'
+
+
+@dataclass
+class Reindexed:
+    """What ``reindex`` did: per topic the messages now in the finished bag."""
+
+    path: str
+    counts: Dict[str, int] = field(default_factory=dict)
+    kept: List[str] = field(default_factory=list)    # the originals, renamed
+    missing: Optional[str] = None                     # what the unfinished bag lacked
+    already_finished: bool = False
+
+    @property
+    def messages(self) -> int:
+        return sum(self.counts.values())
+
+    def describe(self) -> str:
+        if self.already_finished:
+            return (f'{self.path} is a finished bag (summary and metadata.yaml): nothing to '
+                    'reindex')
+        counts = ', '.join(f'{t}: {n}' for t, n in sorted(self.counts.items()))
+        text = (f'{self.path} reindexed: {self.messages} messages ({counts}); summary and '
+                f'metadata.yaml written; the original kept as {", ".join(self.kept)}')
+        return text + (f'. {self.missing}' if self.missing else '')
+
+
+def reindex(path: str) -> Reindexed:
+    """
+    Rewrite the unfinished bag directory ``path`` as a finished one; return what it holds.
+
+    BagReadError (one line) when ``path`` is no bag directory, or an earlier reindexing left its
+    ``.unfinished`` copy there.
+    """
+    directory = os.path.abspath(path)
+    if not os.path.isdir(directory):
+        raise BagReadError(f'{path} is not a bag directory (reindex rewrites a bag directory; '
+                           'put a lone .mcap file in a directory of its own)')
+    reader = BagReader(directory, salvage=True)
+    reader.info()                                   # a full scan: complete? damaged?
+    result = Reindexed(directory)
+    if reader.complete and not reader.damage and reader.metadata is not None:
+        result.already_finished = True
+        return result
+    result.missing = reader.shortfall(hint=False) or ('damaged: ' + '; '.join(
+        d.describe() for d in reader.damage))
+    for path_ in reader.files:
+        if os.path.lexists(path_ + SUFFIX):
+            raise BagReadError(f'{path_ + SUFFIX} exists (an earlier reindex kept the original '
+                               'there): move it away first')
+    topics: Dict[str, list] = {}
+    start = end = None
+    names = []
+    for path_ in reader.files:
+        first, last = _rewrite(path_, topics)
+        if first is not None:
+            start = first if start is None else min(start, first)
+            end = last if end is None else max(end, last)
+        names.append(os.path.basename(path_))
+        result.kept.append(os.path.basename(path_) + SUFFIX)
+    # Topics metadata.yaml listed without a message left keep their entry.
+    for entry in (reader.metadata or {}).get('topics_with_message_count') or []:
+        meta = entry['topic_metadata']
+        topics.setdefault(meta['name'], [
+            meta['name'], meta.get('type', ''), meta.get('serialization_format', 'cdr'),
+            meta.get('offered_qos_profiles') or [], meta.get('type_description_hash', ''), 0])
+    custom = dict((reader.metadata or {}).get('custom_data') or {})
+    custom['saw_ros.reindexed'] = result.missing
+    info = bag_metadata(names[0], [tuple(t) for t in topics.values()], start, end, custom)
+    if len(names) > 1:
+        info['relative_file_paths'] = names
+        info['files'] = [{'path': n} for n in names]
+    _write_metadata(directory, info)
+    result.counts = {name: t[5] for name, t in topics.items()}
+    return result
+
+
+def _rewrite(path: str, topics: Dict[str, list]):
+    """
+    Copy the readable messages of ``path`` into a finished file put in its place.
+
+    ``topics`` gains each topic's metadata.yaml entry; returns the first and last log time.
+    """
+    directory = os.path.dirname(path)
+    temporary = inside(directory, f'.{os.path.basename(path)}.reindexing', directory)
+    if os.path.lexists(temporary):          # left by an interrupted reindex: ours to replace
+        os.remove(temporary)
+    first = last = None
+    with open(temporary, 'xb') as stream:
+        writer = Writer(stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD,
+                        enable_data_crcs=True)
+        writer.start(profile='ros2', library='saw_ros reindex (mcap-python)')
+        schemas: Dict[int, int] = {}
+        channels: Dict[int, int] = {}
+        for m in BagReader(path, salvage=True).messages():
+            channel = channels.get(m.channel.id)
+            if channel is None:
+                schema = 0
+                if m.schema is not None:
+                    schema = schemas.get(m.schema.id)
+                    if schema is None:
+                        schema = schemas[m.schema.id] = writer.register_schema(
+                            m.schema.name, m.schema.encoding, m.schema.data)
+                channel = channels[m.channel.id] = writer.register_channel(
+                    m.topic, m.channel.message_encoding, schema, dict(m.channel.metadata))
+                topics.setdefault(m.topic, [
+                    m.topic, m.type, m.channel.message_encoding, channel_qos(m.channel),
+                    m.channel.metadata.get('topic_type_hash', ''), 0])
+            writer.add_message(channel, m.log_time, m.data, m.publish_time, m.sequence)
+            topics[m.topic][5] += 1
+            first = m.log_time if first is None else first
+            last = m.log_time
+        counts = [(t[0], t[1], t[2], t[3], t[4], t[5]) for t in topics.values()]
+        writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(
+            bag_metadata(os.path.basename(path), counts, first, last, None))})
+        writer.finish()
+        stream.flush()
+        os.fsync(stream.fileno())
+    os.replace(path, path + SUFFIX)
+    os.replace(temporary, path)
+    return first, last
+
+
+def _write_metadata(directory: str, info: dict) -> None:
+    """Write metadata.yaml under a temporary name, then move it into place (never half)."""
+    temporary = inside(directory, '.metadata.yaml.reindexing', directory)
+    with open(temporary, 'w', encoding='utf-8') as f:
+        f.write(dump_yaml({'rosbag2_bagfile_information': info}))
+    os.replace(temporary, os.path.join(directory, 'metadata.yaml'))
