@@ -78,9 +78,9 @@ VELOCITY_WINDOW = 0.010   # s
 
 def velocity_on_grid(t: np.ndarray, x: np.ndarray, window: float = VELOCITY_WINDOW):
     """
-    Return (grid, v) of a sampled position.
+    Return (grid, v) of a sampled position: x resampled every median sample interval.
 
-    x resampled every median sample interval, v its centred difference over ``window``.
+    v is the centred difference of the resampled x over ``window``.
     """
     step = float(np.median(np.diff(t)))
     grid = np.arange(t[0] + window / 2, t[-1] - window / 2 + 1e-12, step)
@@ -90,9 +90,10 @@ def velocity_on_grid(t: np.ndarray, x: np.ndarray, window: float = VELOCITY_WIND
 
 class RunComparator:
     """
-    Collects ground truth (x, vx at the simulator's rate) and tracked positions.
+    Collects ground truth and tracked positions, and compares them on demand.
 
-    (x at the camera's rate), both against simulated time, and compares them on demand.
+    Ground truth is x and vx at the simulator's rate, tracking x at the camera's rate, both
+    against simulated time.
     """
 
     def __init__(self, robot: RobotParams, frequency: float = float('nan'),
@@ -206,9 +207,10 @@ class ReferencePoint:
 
 def load_reference(path: Path) -> List[ReferencePoint]:
     """
-    CSV with columns slope_deg, voltage_V, and speed_cm_s and/or advance_ratio.
+    Return the points of a reference CSV of measured speeds or advance ratios.
 
-    (either may be empty), plus an optional source; lines starting with # are comments.
+    Columns slope_deg, voltage_V, and speed_cm_s and/or advance_ratio (either may be empty),
+    plus an optional source; lines starting with # are comments.
     """
     path = Path(path)
     if not path.exists():

@@ -362,7 +362,7 @@ def make_clip(scenario: Scenario, path, start: float = 1.2, duration: float = 2.
     """
     Simulate ``scenario`` and write the frames of [start, start + duration) as an .mp4.
 
-    (video time 0 = ``start``); the camera is centred on the robot's path over the clip. Returns
+    Video time 0 is ``start``; the camera is centred on the robot's path over the clip. Returns
     the ground truth: {'t': frame times (video), 'x': true COM x, 'speed': least-squares speed over
     the clip's whole cycles, 'px_per_m', 'frequency', 'center_x', 'center_y'}.
     """

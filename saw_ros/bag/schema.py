@@ -52,10 +52,9 @@ def _share_file(type_name: str, extension: str) -> str:
 
 def check_definitions() -> None:
     """
-    Raise UnknownMessageType.
+    Raise UnknownMessageType if message definitions cannot be found at all.
 
-    (one line saying what to source) if message definitions cannot be found at all: a recorder
-    calls it before creating its bag.
+    Its message is one line saying what to source; a recorder calls this before creating its bag.
     """
     message_definition('builtin_interfaces/msg/Time')
 

@@ -1,9 +1,9 @@
 """
-Recorder throughput: the highest message rate it keeps with zero loss.
+Recorder throughput: the highest message rate it keeps with zero loss, and its default load.
 
-(publisher in another process: the ``loadgen`` node, 6 topics of the simulator's types, rate raised
-until messages are lost), and the messages lost and CPU share at the default load (1 kHz on the 6
-simulator topics plus 60 fps 1280x720 rgb8 images).
+The publisher runs in another process (the ``loadgen`` node, 6 topics of the simulator's types),
+its rate raised until messages are lost; at the default load (1 kHz on the 6 simulator topics
+plus 60 fps 1280x720 rgb8 images) the bench reports the messages lost and the CPU share.
 
 The recorder is started with ``exclude_topics`` empty: the default load includes the raw images.
 Logs of every trial stay in ``log_dir('recorder')`` (the bag is deleted once counted); a trial
@@ -33,7 +33,7 @@ class TrialFailed(RuntimeError):
     """
     A trial's process hung or failed, or its bag is unreadable.
 
-    (the message says which and where the logs are).
+    The message says which, and where the logs are.
     """
 
 

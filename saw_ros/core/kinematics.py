@@ -261,9 +261,9 @@ class JointTable(PhaseTable):
 
     def angles_and_rates(self, phase: float, omega: float = 0.0):
         """
-        ([base_angle, link_00, ...], their rates in rad/s) at ``phase``.
+        Return ([base_angle, link_00, ...], their rates in rad/s) at ``phase``.
 
-        (wrapped into [0, 2 pi)) for helix speed ``omega`` (rad/s).
+        ``phase`` is wrapped into [0, 2 pi); the rates are for helix speed ``omega`` (rad/s).
         """
         i, w = self.index(phase % (2.0 * np.pi))
         return self.points[i] + w * self.slopes[i], self.derivative[i] * omega

@@ -113,8 +113,8 @@ def cycle_window(t, start: float, frequency: float, turns=None) -> Tuple[int, in
     """
     Return the first and last sample (i0, i1) of the whole wave cycles from ``start``.
 
-    (to the end of the record, or all of it when it is shorter than a cycle). ``turns``: the
-    helix angle per sample, whose whole turns are then the cycles.
+    The cycles run to the end of the record, or the window is all of it when it is shorter than
+    a cycle. ``turns``: the helix angle per sample, whose whole turns are then the cycles.
     """
     t = np.asarray(t, float)
     span = t[-1] - start
@@ -216,8 +216,8 @@ def run_frequency(trajectory, i: int = 0) -> float:
     """
     Return the helix frequency (Hz) scenario ``i`` of a ``Trajectory`` ran at.
 
-    conditions.frequency, or, where a motor drove the helix, its mean over the second half of
-    the record (past the spin-up): what v_theory and AR of a motor run are taken against.
+    That is conditions.frequency, or, where a motor drove the helix, its mean over the second
+    half of the record (past the spin-up): what v_theory and AR of a motor run are taken against.
     """
     scenario = trajectory.scenarios[i]
     if scenario.motor.voltage <= 0.0 or trajectory.omega is None:

@@ -88,10 +88,11 @@ class WormParams:
 
 def anchor_normal_force(worm: WormParams, scenario: Scenario) -> float:
     """
-    F_a: an expanded cell squeezed by (height - gap) / 2 into each surface.
+    Return F_a, the normal force of an expanded cell squeezed by (height - gap) / 2 into each side.
 
-    (Hertz law, both sides; its friction acts on both), plus its weight share on the bottom; at
-    least the weight share (a cell shorter than the gap still rests on the bottom surface).
+    That is the Hertz law on both sides (its friction acts on both), plus the cell's weight share
+    on the bottom; at least the weight share (a cell shorter than the gap still rests on the
+    bottom surface).
     """
     if worm.anchor_normal_force is not None:
         return worm.anchor_normal_force
@@ -136,7 +137,7 @@ def zero_advance_stiffness(scenario: Scenario, worm: WormParams = WormParams()) 
 
 def _equilibrium(b, k, cap, demand):
     """
-    Body position X (per row) where sum_j clip(-k (X - b_j), -cap_j, cap_j) = demand.
+    Return the body position X (per row) where sum_j clip(-k (X - b_j), -cap_j, cap_j) = demand.
 
     b, cap: (S, N). Returns (X, ok): ok False where the caps cannot carry the demand.
     """
@@ -156,10 +157,10 @@ def _equilibrium(b, k, cap, demand):
 def contact_law(scenarios, worm: WormParams = WormParams(), cycles: int = 3,
                 increments: int = 10) -> list:
     """
-    Return the worm's cells meeting the wave's contact law quasi-statically.
+    Return the worm's cells meeting the wave's contact law quasi-statically, per scenario.
 
-    (module docstring, model 2), for a list of scenarios at once. AR from the last cycle: 3 cycles
-    of 10 increments per step agree with 8 cycles of 200 to 5e-4 in AR.
+    This is model 2 of the module docstring, for a list of scenarios at once. AR from the last
+    cycle: 3 cycles of 10 increments per step agree with 8 cycles of 200 to 5e-4 in AR.
     """
     scenarios = [scenarios] if isinstance(scenarios, Scenario) else list(scenarios)
     S, n, s = len(scenarios), worm.cells, worm.stroke

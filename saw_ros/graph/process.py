@@ -193,9 +193,9 @@ NODE_PACKAGE = 'saw_ros.ros.nodes'
 def node_command(executable: str, *ros_args: str, params: Optional[Dict[str, object]] = None,
                  params_file: Optional[Path] = None, package: str = NODE_PACKAGE) -> List[str]:
     """
-    Argv to run one of our executables (a module of ``package``) with ROS arguments, by module.
+    Return the argv that runs one of our executables (a module of ``package``) with ROS arguments.
 
-    (no PATH lookup).
+    The module runs as ``python -m`` under this Python (no PATH lookup).
     """
     argv = [sys.executable, '-m', f'{package}.{executable}']
     extra = list(ros_args)

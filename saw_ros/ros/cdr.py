@@ -44,9 +44,9 @@ def stamp_ns(data: bytes) -> int:
 
 def array_stamp_ns(data: bytes) -> int:
     """
-    header.stamp in ns of the first element of a sequence of stamped messages.
+    Return header.stamp in ns of the first element of a sequence of stamped messages.
 
-    (a visualization_msgs/MarkerArray: its first marker's header, after the sequence's length).
+    For a visualization_msgs/MarkerArray: its first marker's header, after the sequence's length.
     """
     e = _prefix(data)
     sec, nanosec = struct.unpack_from(e + 'iI', data, _HEADER + 4)
@@ -200,10 +200,9 @@ class CdrWriter:
 
 class ImageCdr:
     """
-    Encodes sensor_msgs/Image.
+    Encodes sensor_msgs/Image as little-endian XCDR1 around a frame's pixel bytes.
 
-    (little-endian XCDR1) around a frame's pixel bytes, with one copy of the pixels:
-    ``encoder(pixels, stamp_ns)`` -> bytes ready for ``publish``.
+    One copy of the pixels: ``encoder(pixels, stamp_ns)`` -> bytes ready for ``publish``.
     """
 
     def __init__(self, width: int, height: int, encoding: str, step: int, frame_id: str):
@@ -223,10 +222,9 @@ class ImageCdr:
 
 class CompressedImageCdr:
     """
-    Encodes sensor_msgs/CompressedImage.
+    Encodes sensor_msgs/CompressedImage as little-endian XCDR1 around the compressed bytes.
 
-    (little-endian XCDR1) around the compressed bytes: ``encoder(data, stamp_ns)`` -> bytes ready
-    for ``publish``.
+    ``encoder(data, stamp_ns)`` -> bytes ready for ``publish``.
     """
 
     def __init__(self, format_: str, frame_id: str):

@@ -64,8 +64,8 @@ def _tail() -> bytes:
     """
     Return what follows a Marker's points, all empty.
 
-    (colors, texture_resource, texture, uv_coordinates, text, mesh_resource, mesh_file,
-    mesh_use_embedded_materials). Nothing in it needs more than 4-byte alignment, and it always
+    That is colors, texture_resource, texture, uv_coordinates, text, mesh_resource, mesh_file and
+    mesh_use_embedded_materials. Nothing in it needs more than 4-byte alignment, and it always
     starts 4-aligned (after the points' u32 length or float64s), so its bytes never change.
     """
     w = CdrWriter()

@@ -121,9 +121,9 @@ class CameraModel:
 
     def distort(self, pixels):
         """
-        Ideal pixels (complex u + i v) -> where the lens puts them in the image.
+        Return where the lens puts ideal pixels (complex u + i v) in the image.
 
-        (OpenCV's distortion model). Identity without a distortion.
+        OpenCV's distortion model; the identity without a distortion.
         """
         p = np.asarray(pixels)
         if not self.distorted:
@@ -142,10 +142,10 @@ class CameraModel:
 
     def undistort(self, pixels):
         """
-        Image pixels (complex) -> ideal pixels, the inverse of ``distort``.
+        Return the ideal pixels of image pixels (complex), the inverse of ``distort``.
 
-        (OpenCV's iterative undistortPoints, in the calibration's pixel grid). Identity without a
-        distortion.
+        OpenCV's iterative undistortPoints, in the calibration's pixel grid; the identity without
+        a distortion.
         """
         p = np.asarray(pixels)
         if not self.distorted:

@@ -241,9 +241,9 @@ class Renderer:
     def draw(self, pose: RobotPose, out: np.ndarray, hidden: Iterable[str] = (),
              t: float = 0.0) -> np.ndarray:
         """
-        Draw the scene at one instant (time t for moving clutter) into ``out``, ideal.
+        Draw the scene at one instant (time t for moving clutter) into ``out``.
 
-        (no lens), no blur, brightness or noise.
+        The ideal picture: no lens, no blur, brightness or noise.
         """
         np.copyto(out, self._background)
         clutter = self.scene.clutter
@@ -330,10 +330,10 @@ class Renderer:
 
 class StampedSeries:
     """
-    Time-stamped samples arriving in order.
+    Time-stamped samples arriving in order (stamps increasing), linearly interpolated.
 
-    (stamps increasing: ns in the camera node), linearly interpolated; keeps the last ``keep_ns``
-    (at least 4096 samples; None: all).
+    Stamps are ns in the camera node. Keeps the last ``keep_ns`` (at least 4096 samples; None:
+    all).
     """
 
     def __init__(self, keep_ns: Optional[int] = None):

@@ -88,10 +88,10 @@ def frames(run: Run, renderer: Renderer, times: Iterable[float],
 def cluttered_scene(run: Run, camera: CameraModel = CameraModel(), compression: str = 'jpeg',
                     quality: int = 70, cross_at: float = 3.0) -> SceneOptions:
     """
-    Return the hard case for a run of the default scenario.
+    Return the hard case for a run of the default scenario, seen by ``camera``.
 
-    (robot from x = 0 towards +x at about 5 cm/s) seen by ``camera``: red, orange-red and orange
-    objects in the corners (the orange one moving, in front of everything), two magenta discs of a
+    The robot goes from x = 0 towards +x at about 5 cm/s. Red, orange-red and orange objects are
+    in the corners (the orange one moving, in front of everything), two magenta discs of a
     marker's size (one on the wall above the track, one drifting against the robot on the top
     board, 42 px above the marker line), and three more hot-pink markers: one behind the robot on
     its line, one ahead of it on its line (out of the robot's reach in 6.5 s) and one moving up

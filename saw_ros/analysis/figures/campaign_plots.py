@@ -1,8 +1,7 @@
 """
-Figures 17 and 18 of the validation campaign.
+Figures 17 and 18 of the validation campaign (paper Section 6).
 
-(paper Section 6), from ``saw_ros.analysis.campaign``'s results: the plotting beside the other
-figures.
+Drawn from ``saw_ros.analysis.campaign``'s results: the plotting beside the other figures.
 """
 from __future__ import annotations
 
