@@ -1,9 +1,9 @@
 """
 The paper's claims that our model holds, computed by the same code as the fidelity report.
 
-(saw_ros/analysis/figures/claims.py) on the quick grids. A change that breaks one of them fails
-here; a claim that starts to hold should move from NOT_HELD to HELD (and the report be
-regenerated).
+The code is saw_ros/analysis/figures/claims.py, here on the quick grids. A change that breaks one
+of them fails here; a claim that starts to hold should move from NOT_HELD to HELD (and the report
+be regenerated).
 """
 import pytest
 

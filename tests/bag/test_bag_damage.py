@@ -1,9 +1,9 @@
 """
-Damaged bytes are reported as damage.
+Damaged bytes are reported as damage, unless salvaging.
 
-(which chunk, its log time range, how many messages are lost and readable; ``saw-ros bag info``
-exits 1, BagReader raises) unless salvaging; a file cut short (the recorder killed) is unfinished,
-not damaged; decode failures name topic and message.
+The report says which chunk, its log time range, how many messages are lost and readable (``saw-ros
+bag info`` exits 1, BagReader raises); a file cut short (the recorder killed) is unfinished, not
+damaged; decode failures name topic and message.
 """
 import os
 import shutil

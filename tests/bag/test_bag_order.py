@@ -1,7 +1,7 @@
 """
-Messages in a written bag are in log_time order and its chunks do not overlap in time, although.
+Messages in a written bag are in log_time order and its chunks do not overlap in time.
 
-the recorder hands them to the writer in bursts per subscription (``mcap doctor
+That holds although the recorder hands them to the writer in bursts per subscription (``mcap doctor
 --strict-message-order`` and ``mcap info``'s "overlaps: no" hold). Checked with the mcap library's
 stream reader (file order, not the indexed reader, which sorts).
 """
@@ -33,9 +33,9 @@ IMAGE = len(TOPICS) - 1
 
 def received(seconds=2.0, seed=7):
     """
-    Per topic, what a subscription receives.
+    Return per topic what a subscription receives, in receive order.
 
-    (log_time, publish_time, sequence, data) in receive order; 1 kHz on six topics, 60 Hz images.
+    Each message is (log_time, publish_time, sequence, data); 1 kHz on six topics, 60 Hz images.
     """
     rng = random.Random(seed)
     out = []

@@ -31,10 +31,9 @@ def test_reference_default_has_every_simulator_topic_at_1khz():
 @pytest.mark.parametrize('name', ['reference_default', 'reference_camera'])
 def test_reference_bags_are_in_log_time_order_with_chunks_apart(name):
     """
-    What ``mcap doctor --strict-message-order`` and ``mcap info``.
+    Check what ``mcap doctor --strict-message-order`` and ``mcap info`` ("overlaps: no") check.
 
-    ("overlaps: no") check, read in file order with mcap's stream reader; and intact (every chunk
-    CRC).
+    Read in file order with mcap's stream reader; and intact (every chunk CRC).
     """
     path = os.path.join(ROOT, name, f'{name}_0.mcap')
     if not os.path.isfile(path):

@@ -1,8 +1,8 @@
 """
-The whole graph as separate processes.
+The whole graph as separate processes, and the in-process campaign: the same numbers.
 
-(simulator, camera, vision, comparison, recorder) on a short run, and the in-process campaign on
-the same condition: the same numbers.
+Simulator, camera, vision, comparison and recorder on a short run; the campaign on the same
+condition.
 """
 import math
 

@@ -133,10 +133,9 @@ def test_installed_share_has_package_xml_and_every_config_file():
 @needs_install
 def test_ament_index_finds_the_installed_package():
     """
-    The install is an ament prefix of saw_ros.
+    Check that the install is an ament prefix of saw_ros (what `ros2 run` needs).
 
-    (what `ros2 run` needs), with AMENT_PREFIX_PATH as scripts/bootstrap.sh or a colcon setup.bash
-    exports it.
+    With AMENT_PREFIX_PATH as scripts/bootstrap.sh or a colcon setup.bash exports it.
     """
     code = ('from ament_index_python.packages import get_package_prefix, '
             'get_package_share_directory as share; '
@@ -153,10 +152,9 @@ def test_ament_index_finds_the_installed_package():
 @venv_only
 def test_bootstrap_environment_exports_the_ament_prefix():
     """
-    `source scripts/bootstrap.sh`.
+    Check that `source scripts/bootstrap.sh` puts the venv first in AMENT_PREFIX_PATH.
 
-    (the venv exists already: nothing is created) puts the venv first in AMENT_PREFIX_PATH, so that
-    ament tools and `ros2 run` see saw_ros.
+    (The venv exists already: nothing is created.) So ament tools and `ros2 run` see saw_ros.
     """
     env = {k: v for k, v in os.environ.items() if k != 'AMENT_PREFIX_PATH'}
     out = subprocess.run(['bash', '-c', 'source scripts/bootstrap.sh >/dev/null && '

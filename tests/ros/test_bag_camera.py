@@ -1,9 +1,9 @@
 """
-The camera reference recording.
+The camera reference recording replayed through the tracker gives the recorded run's AR.
 
-(bags/reference_camera) replayed through the tracker gives the recorded run's AR: offline (images
-read from the bag) and live (player -> vision node through real topics). Ground truth: the recorded
-/saw/pose (RunComparator, as the comparison node).
+The recording is bags/reference_camera, replayed offline (images read from the bag) and live
+(player -> vision node through real topics). Ground truth: the recorded /saw/pose
+(RunComparator, as the comparison node).
 """
 import os
 

@@ -40,10 +40,10 @@ def clean(proc: ManagedProcess, code: int) -> str:
 
 def stop_all(procs, sig, together: bool):
     """
-    Send ``sig`` to each process's group, in order, each waited for before the next.
+    Send ``sig`` to each process's group in turn, or to all at once; return {name: exit code}.
 
-    (as run_pipeline stops the graph), or to all at once (Ctrl-C in a terminal reaches a whole
-    foreground group); returns {name: exit code}.
+    In turn, each waited for before the next, is how run_pipeline stops the graph; all at once is
+    Ctrl-C in a terminal, which reaches a whole foreground group.
     """
     codes = {}
     if together:
@@ -197,9 +197,9 @@ class Counter:
 
     def strangers(self):
         """
-        Nodes in the DDS domain that none of our runs starts.
+        Return the nodes in the DDS domain that none of our runs starts.
 
-        (another run's: then the test's findings are not about our graph).
+        They are another run's: then the test's findings are not about our graph.
         """
         ours = {'simulator', 'comparison', 'vision', 'camera', 'recorder', 'recorder_large',
                 'clean_stop_watcher'}
@@ -220,10 +220,10 @@ ROUNDS = [(signal.SIGINT, False), (signal.SIGTERM, False), (signal.SIGINT, True)
 @pytest.mark.slow
 def test_whole_graph_stops_cleanly_on_sigint_and_sigterm_every_time(tmp_path, ros_context):
     """
-    Five rounds of the whole graph.
+    Stop five rounds of the whole graph while tracking runs: each time, all end cleanly.
 
-    (simulator, camera, vision, comparison, recorder), each stopped while tracking runs: every node
-    exits 0 with neither traceback nor FATAL line, and the bag is complete.
+    Simulator, camera, vision, comparison and recorder: every node exits 0 with neither traceback
+    nor FATAL line, and the bag is complete.
     """
     env = dict(os.environ)      # the run's isolated domain (conftest), the watcher's too
     for i, (sig, together) in enumerate(ROUNDS):
@@ -259,10 +259,9 @@ def test_whole_graph_stops_cleanly_on_sigint_and_sigterm_every_time(tmp_path, ro
 @pytest.mark.slow
 def test_simulator_stops_cleanly_on_sigint_while_publishing(tmp_path, ros_context):
     """
-    Ten Ctrl-C's of a simulator publishing its 1 kHz streams to a subscriber of every topic.
+    Ctrl-C a simulator ten times while it publishes its 1 kHz streams to the test's subscribers.
 
-    (the test's): exit 0, no traceback, no FATAL line, and every step it published received, each
-    time.
+    Each time: exit 0, no traceback, no FATAL line, and every step it published received.
     """
     env = dict(os.environ)
     for i in range(10):

@@ -280,10 +280,10 @@ def test_divergence_stops_with_an_error_and_no_nan(start_simulator, watcher):
 def test_as_fast_as_possible_still_serves_requests_and_stops_on_sigint(start_simulator,
                                                                        watcher):
     """
-    real_time_factor 0: requests are served between batches of steps, and Ctrl-C.
+    Check real_time_factor 0: requests are served between batches of steps, Ctrl-C exits 0.
 
-    (SIGINT to the process group) exits 0. (No stamp check: no Python subscriber keeps up at rtf
-    0.).
+    Ctrl-C is SIGINT to the process group. (No stamp check: no Python subscriber keeps up at rtf
+    0.)
     """
     proc = start_simulator(real_time_factor=0.0)
     assert watcher.wait(lambda: watcher.count() >= 100, 20), proc.output()

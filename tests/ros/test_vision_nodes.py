@@ -1,7 +1,7 @@
 """
-Camera + vision nodes through real topics.
+Camera + vision nodes through real topics, and the camera's video read by the offline tracker.
 
-(isolated domain from conftest), and the video the camera writes read back by the offline tracker.
+The topics are in the isolated domain from conftest.
 """
 import math
 
