@@ -112,3 +112,25 @@ def test_a_motor_run_is_compared_over_whole_helix_turns_at_the_frequency_reached
     assert cycles == pytest.approx(round(cycles), abs=1e-6) and round(cycles) >= 1
     assert r.ar_sim == pytest.approx(analyse_run(tr).advance_ratio, rel=0.01)
     assert r.relative_error < 0.002
+
+
+def test_a_long_run_keeps_a_bounded_window_and_still_compares():
+    # 400 s of a steady 1 Hz wave at 1 kHz (the node's pose rate), tracked at 60 Hz 2 % slow:
+    # the comparator keeps at most 1.5 x keep_s of it, and compares over what it keeps.
+    comp = RunComparator(ROBOT, 1.0, keep_s=30.0)
+    most = {'truth': 0, 'tracked': 0}
+    for second in range(400):
+        t = second + np.arange(0, 1, 0.001)
+        x = 0.05 * t + 0.002 * np.sin(2 * np.pi * t)
+        feed_truth(comp, t, x)
+        for k in range(60):
+            frame = second + k / 60
+            comp.add_tracked(frame, 0.98 * (0.05 * frame + 0.002 * np.sin(2 * np.pi * frame)))
+        most['truth'] = max(most['truth'], comp.truth.size)
+        most['tracked'] = max(most['tracked'], comp.tracked.size)
+    assert most['truth'] <= 45_000 + 1 and most['tracked'] <= 46 * 60 + 1
+    assert comp.truth.column(0)[0] >= 400 - 45
+    r = comp.result()
+    assert r.steady and 30 - 1 <= r.window_s <= 45
+    assert r.v_sim == pytest.approx(0.05, rel=1e-3)
+    assert r.relative_error == pytest.approx(0.02, abs=1e-3)
