@@ -49,6 +49,9 @@ COMPARISON = '/saw/comparison'
 READY = '/saw/ready'
 MARKERS = '/saw/markers'
 TRACKING_MARKERS = '/saw/tracking/markers'
+TF = '/tf'
+TF_STATIC = '/tf_static'
+ROBOT_DESCRIPTION = '/robot_description'
 PREFIX = '/saw/'
 
 TOPICS: Tuple[Topic, ...] = (
@@ -92,6 +95,13 @@ TOPICS: Tuple[Topic, ...] = (
           'surface', 'surfaces, robot and contact forces for RViz / Foxglove'),
     Topic(TRACKING_MARKERS, 'visualization_msgs/msg/MarkerArray', 'tracking', 'vision',
           '60 Hz', 'surface', "the tracker's marker centres and pose, over /saw/markers"),
+    Topic(TF, 'tf2_msgs/msg/TFMessage', 'tracking', 'simulator, vision', '60 Hz', 'surface',
+          'surface -> base_link (simulator, markers_rate), surface -> base_link_tracked '
+          '(vision, per frame); saw_ros.interface.frames'),
+    Topic(TF_STATIC, 'tf2_msgs/msg/TFMessage', 'latched', 'camera', 'once', 'surface',
+          'surface -> saw_camera, the camera optical frame'),
+    Topic(ROBOT_DESCRIPTION, 'std_msgs/msg/String', 'latched', 'simulator', 'once', '',
+          'URDF of the robot (saw_ros.interface.urdf), for robot_state_publisher and RViz'),
     Topic(READY, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'camera, comparison, vision',
           'once per node', '', "node's status: name, level OK, 'ready': 'true' once its inputs "
           'matched (saw_ros.ros.ready)', recorded=False),

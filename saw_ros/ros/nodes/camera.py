@@ -34,6 +34,7 @@ from rclpy.serialization import serialize_message
 from saw_ros.core.params import ParameterError, Scenario, spec_entries, spec_meta
 from saw_ros.interface import topics
 from saw_ros.ros import cdr
+from saw_ros.ros import tf
 from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, ScenarioParameters, yaml_text
 from saw_ros.ros.qos import image_publisher_qos, INPUT_DEPTH, STREAM_QOS, with_depth
@@ -183,6 +184,11 @@ class CameraNode(Node):
             CompressedImage, topics.IMAGE_COMPRESSED, out_qos) \
             if self.jpeg_quality is not None else None
         self._pub_info = self.create_publisher(CameraInfo, topics.CAMERA_INFO, out_qos)
+        # surface -> frame_id on /tf_static, latched. The fixed camera's pose: when the camera
+        # follows the robot, CameraInfo shifts the principal point instead, which for points of
+        # the plane of motion is the same as moving the camera (see _follow).
+        self._pub_tf_static = tf.publisher(self, static=True)
+        self._pub_tf_static.publish(tf.message([tf.camera_transform(camera, self.frame_id)]))
         self._info_source = self._info_serialized = None
         self._inputs = (
             self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,

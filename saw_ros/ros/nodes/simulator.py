@@ -43,13 +43,15 @@ from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError
 from saw_ros.core.params import spec_meta
-from saw_ros.interface import scene_markers, topics
+from saw_ros.interface import frames, scene_markers, topics, urdf
 from saw_ros.ros import conversions as conv
 from saw_ros.ros import markers
+from saw_ros.ros import tf
 from saw_ros.ros.params import declare_spec
 from saw_ros.ros.params import ScenarioParameters, SIMULATOR_EXCLUDED
 from saw_ros.ros.qos import message_class, publisher_profile
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_node
+from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 # What the node publishes every step, in this order (tests and benchmarks subscribe from here):
@@ -129,6 +131,13 @@ class SimulatorNode(Node):
         self._pub_markers = self.create_publisher(
             message_class(topics.topic(topics.MARKERS).type), topics.MARKERS,
             publisher_profile(topics.topic(topics.MARKERS).qos))
+        # TF surface -> base_link with the markers (the viewers' rate, not 1 kHz: /saw/pose has
+        # every step), and the URDF of this robot, latched (saw_ros.interface.urdf).
+        self._pub_tf = tf.publisher(self)
+        self._pub_description = self.create_publisher(
+            String, topics.ROBOT_DESCRIPTION,
+            publisher_profile(topics.topic(topics.ROBOT_DESCRIPTION).qos))
+        self._pub_description.publish(String(data=urdf.urdf(scenario.robot)))
 
         self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -298,6 +307,8 @@ class SimulatorNode(Node):
             self._pub_markers.publish(markers.marker_array_cdr(scene_markers.scene(
                 scenario.robot, scenario.conditions.gap, (x, y, theta), float(sim.phase[0]),
                 points), ns))
+            self._pub_tf.publish(tf.message([tf.planar(frames.SURFACE, frames.BASE_LINK, ns,
+                                                       x, y, theta)]))
 
     def close(self) -> None:
         """

@@ -35,10 +35,11 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from saw_ros.core.params import spec_entries, spec_meta
-from saw_ros.interface import scene_markers, topics
+from saw_ros.interface import frames, scene_markers, topics
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.ros import markers
+from saw_ros.ros import tf
 from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, publisher_profile, with_depth
@@ -134,6 +135,7 @@ class VisionNode(Node):
         self._pub_status = pub(DiagnosticArray, topics.TRACKING_STATUS, out_qos)
         self._pub_markers = pub(MarkerArray, topics.TRACKING_MARKERS,
                                 publisher_profile(topics.topic(topics.TRACKING_MARKERS).qos))
+        self._pub_tf = tf.publisher(self)       # surface -> base_link_tracked, the estimate
         # Raw: the 2.7 MB pixels are read in place (cdr.ImageView) instead of being converted
         # to a Python array and copied again.
         image_qos = with_depth(IMAGE_QOS, IMAGE_PUBLISHER_DEPTH)
@@ -240,6 +242,9 @@ class VisionNode(Node):
             self._pub_pose.publish(conv.pose_cdr(float(res.position.real),
                                                  float(res.position.imag), float(res.pitch),
                                                  t_ns))
+            self._pub_tf.publish(tf.message([tf.planar(
+                frames.SURFACE, frames.TRACKED, t_ns, float(res.position.real),
+                float(res.position.imag), float(res.pitch))]))
             if res.velocity is not None:
                 self._pub_twist.publish(conv.twist_cdr(
                     float(res.velocity.real), float(res.velocity.imag), float(res.pitch_rate),
