@@ -1,0 +1,212 @@
+"""
+The docs stay true (issue 20).
+
+Nothing in the repository points outside it, every relative link in the docs resolves, the
+command table lists every subcommand, the cheap commands the README shows run, and the numbers
+it quotes are the generated ones, which a fresh run of the model reproduces.
+"""
+import math
+from pathlib import Path
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+README = ROOT / 'README.md'
+# Written in pieces so that this file does not match itself.
+OUTSIDE = ('..' + '/shared', 'shared' + '/docs', '/' + 'work/', 'shared' + '/seed')
+LINK = re.compile(r'!?\[[^\]]*\]\(([^)\s]+)\)')
+
+
+def tracked_files():
+    try:
+        out = subprocess.run(['git', 'ls-files', '-z'], cwd=ROOT, capture_output=True,
+                             timeout=30)
+    except FileNotFoundError:
+        pytest.skip('git is not installed: the tracked files cannot be listed')
+    if out.returncode != 0:
+        pytest.skip('not a git checkout (an installed copy): no tracked files to check')
+    return [ROOT / name for name in out.stdout.decode().split('\0') if name]
+
+
+def markdown_files():
+    return [README, ROOT / 'bags' / 'README.md', ROOT / 'samples' / 'footage' / 'README.md',
+            *sorted((ROOT / 'docs').rglob('*.md'))]
+
+
+def test_no_file_refers_to_paths_outside_the_repository():
+    found = []
+    for path in tracked_files():
+        if not path.is_file():
+            continue        # deleted in the working tree, not yet committed
+        data = path.read_bytes()
+        if b'\0' in data[:8192]:
+            continue        # binary: images, bags, videos
+        for number, line in enumerate(data.decode('utf-8', 'replace').splitlines(), 1):
+            for needle in OUTSIDE:
+                if needle in line:
+                    found.append(f'{path.relative_to(ROOT)}:{number}: {needle}')
+    assert not found, 'paths outside the repository:\n' + '\n'.join(found)
+
+
+@pytest.mark.parametrize('doc', markdown_files(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_relative_link_resolves(doc):
+    broken = []
+    for target in LINK.findall(doc.read_text()):
+        if '://' in target or target.startswith(('mailto:', '#')):
+            continue
+        path = (doc.parent / target.split('#')[0]).resolve()
+        if not path.exists() or ROOT not in path.parents and path != ROOT:
+            broken.append(target)
+    assert not broken, f'{doc.relative_to(ROOT)}: links that do not resolve: {broken}'
+
+
+def subcommands():
+    from saw_ros.cli.main import build_parser
+    parser = build_parser()
+    action = next(a for a in parser._actions if a.dest == 'command')
+    return sorted(action.choices)
+
+
+def readme_section(title: str) -> str:
+    text = README.read_text()
+    start = text.index(f'\n## {title}')
+    end = text.find('\n## ', start + 1)
+    return text[start:end if end > 0 else None]
+
+
+def test_the_command_table_lists_every_subcommand():
+    table = readme_section('The offline command `saw-ros`')
+    listed = set(re.findall(r'^\| `saw-ros ([a-z-]+)', table, re.M))
+    assert listed == set(subcommands())
+
+
+def readme_commands():
+    """Return the lines of the README's shell blocks that start with saw-ros (comments cut)."""
+    commands = []
+    for block in re.findall(r'```bash\n(.*?)```', README.read_text(), re.S):
+        for line in block.splitlines():
+            line = line.split('  #')[0].strip()
+            if line.startswith('saw-ros '):
+                commands.append(line.split()[1:])
+    return commands
+
+
+# What the README shows that is cheap enough for the tests (seconds each): the rest (demo, the
+# 20-condition campaign, figures, bench, calibrate) is run by its own tests and scripts/main.sh.
+def cheap(args):
+    return args[0] in ('statics', 'simulate', 'track') or '--help' in args or '--videos' in args
+
+
+def test_the_readme_shows_the_first_ten_minutes():
+    shown = {c[0] for c in readme_commands() if cheap(c)}
+    assert {'statics', 'simulate', 'track', 'campaign'} <= shown
+
+
+@pytest.mark.parametrize('args', [c for c in readme_commands() if cheap(c)]
+                         + [[name, '--help'] for name in subcommands()] + [['--help']],
+                         ids=' '.join)
+def test_readme_command_runs(args, tmp_path):
+    # Run from a scratch folder, as the commands write under ./out by default; the README's
+    # paths (samples/...) are relative to the repository.
+    args = [str(ROOT / a) if (ROOT / a).exists() and '/' in a else a for a in args]
+    r = subprocess.run([sys.executable, '-m', 'saw_ros.cli.main', *args], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert 'Traceback' not in r.stderr and r.stdout.strip()
+
+
+# -- the numbers the README and docs quote -----------------------------------------------------
+def fidelity_row(claim: str) -> list:
+    for line in (ROOT / 'docs' / 'fidelity.md').read_text().splitlines():
+        if line.startswith(f'| {claim} |'):
+            return [cell.strip() for cell in line.strip('|').split('|')]
+    raise AssertionError(f'claim {claim} is not in docs/fidelity.md')
+
+
+def ours(claim: str) -> str:
+    """Return the first number of the 'ours' column of a claim in docs/fidelity.md."""
+    return re.search(r'-?\d+\.\d+', fidelity_row(claim)[4]).group()
+
+
+def campaign_reference_error() -> str:
+    text = (ROOT / 'docs' / 'campaign' / 'campaign.md').read_text()
+    return re.search(r'speeds the paper states: mean relative error (\d+\.\d) %', text).group(1)
+
+
+def test_the_readme_quotes_the_generated_numbers():
+    text = ' '.join(README.read_text().split())
+    quoted = [
+        f'AR {ours("A1")} on the level and {ours("A2")} climbing vertically',
+        f'under 2 % after {ours("C2")} s and under 0.2 % after {ours("C3")} s',
+        f'({ours("S1")} deg, {ours("S2")} m g, {ours("S5")} deg)',
+        f'{campaign_reference_error()} % from the three speeds the paper measured',
+    ]
+    missing = [q for q in quoted if q not in text]
+    assert not missing, f'README.md does not say (or says other numbers than): {missing}'
+
+
+def test_the_statics_quoted_are_the_closed_forms():
+    from saw_ros.core import statics
+    assert f'{math.degrees(statics.top_surface_needed_above(0.0, 0.4)):.2f}' == ours('S1')
+    assert f'{math.degrees(statics.top_surface_needed_above(0.5, 0.8)):.2f}' == ours('S5')
+    total = statics.minimal_normal_forces(math.pi / 2, 0.0, 0.4)[2]
+    assert f'{float(total):.3f}' == ours('S2')
+
+
+def test_the_quoted_advance_ratios_and_convergence_times_match_a_fresh_run():
+    from saw_ros.analysis.figures import sweeps
+    ar = sweeps.run_wave_batch([sweeps.point(0.0), sweeps.point(90.0)], sweeps.FULL)
+    assert f'{ar[sweeps.point(0.0)]:.3f}' == ours('A1')
+    assert f'{ar[sweeps.point(90.0)]:.3f}' == ours('A2')
+    m = sweeps.run_timeseries()['metrics']
+    assert f'{m.cci_2pct_after:.2f}' == ours('C2')
+    assert f'{m.cci_02pct_after:.2f}' == ours('C3')
+
+
+def test_the_quoted_error_against_the_measured_speeds_matches_a_fresh_run():
+    # The campaign's simulation half at the paper's three stated points, compared as the
+    # campaign does (tracking replaced by the truth at the camera's frame times).
+    from saw_ros.analysis import campaign
+    from saw_ros.analysis.compare import find_reference, load_reference, reference_error
+    from saw_ros.analysis.compare import RunComparator
+    from saw_ros.core import Scenario, simulate
+    from saw_ros.core.metrics import run_turns
+    points = load_reference(ROOT / 'msg_config' / 'reference_paper.csv')
+    assert len(points) == 3
+    everything = [Scenario().with_values({'conditions.slope': math.radians(s),
+                                          'motor.voltage': v})
+                  for v in campaign.PAPER_VOLTAGES for s in campaign.PAPER_SLOPES_DEG]
+    duration = max(campaign.duration_for(s.frequency) for s in everything)
+    scenarios = [Scenario().with_values({'conditions.slope': math.radians(p.slope_deg),
+                                         'motor.voltage': p.voltage}) for p in points]
+    trajectory = simulate(scenarios, duration)
+    errors = []
+    for i, s in enumerate(scenarios):
+        comp = RunComparator(s.robot, s.frequency)
+        x = trajectory.q[:, i, 0]
+        for row in zip(trajectory.t, x):
+            comp.add_truth(*row)
+        for row in zip(trajectory.t, run_turns(trajectory, i)):
+            comp.add_helix(*row)
+        frames = np.arange(1, int(math.floor(trajectory.t[-1] * 60 + 1e-9)) + 1) / 60
+        for row in zip(frames, np.interp(frames, trajectory.t, x)):
+            comp.add_tracked(*row)
+        r = comp.result()
+        point = find_reference(points, math.degrees(s.conditions.slope), s.motor.voltage)
+        errors.append(reference_error(point, r.v_sim, r.v_theory))
+    assert f'{100 * np.mean(errors):.1f}' == campaign_reference_error()
+
+
+def test_the_model_page_lists_every_parameter_with_its_default():
+    from saw_ros.core import Scenario
+    rows = re.findall(r'^\| `([a-z_]+\.[a-z_]+)` \| ([^|]+) \|',
+                      (ROOT / 'docs' / 'model.md').read_text(), re.M)
+    table = {name: value.strip() for name, value in rows}
+    defaults = Scenario().flat()
+    assert set(table) == set(defaults)
+    wrong = {n: (table[n], v) for n, v in defaults.items() if float(table[n]) != float(v)}
+    assert not wrong, f'docs/model.md defaults differ from saw_ros/core/params.py: {wrong}'
