@@ -71,6 +71,41 @@ def test_the_bag_opens_in_a_viewer_and_gives_back_the_camera_video(graph_run, tm
     assert video_info(tmp_path / 'camera.mp4')[:2] == (60.0, frames)
 
 
+def test_every_frame_id_in_the_bag_is_reachable_from_surface_through_tf(graph_run):
+    """Issue 26: /tf and /tf_static recorded with their schemas, and one tree from surface."""
+    from saw_ros.ros import tf
+    from saw_ros.ros.qos import message_class
+    reader = BagReader(str(graph_run.bag_dir))
+    summary = reader.info()['topics']
+    assert summary[topics.TF].count > 0 and summary[topics.TF_STATIC].count == 1
+    children = {}                 # parent -> child frames, from /tf and /tf_static
+    used = {}                     # frame id -> a topic that uses it
+    seen = {}
+    for m in reader.messages():
+        if m.topic in (topics.TF, topics.TF_STATIC):
+            assert m.schema.name == 'tf2_msgs/msg/TFMessage' and m.schema.data
+            for t in deserialize_message(m.data, tf.TFMessage).transforms:
+                children.setdefault(t.header.frame_id, set()).add(t.child_frame_id)
+                used.setdefault(t.header.frame_id, m.topic)
+            continue
+        if seen.get(m.topic, 0) >= 3:     # frame ids are constant per topic: a few suffice
+            continue
+        seen[m.topic] = seen.get(m.topic, 0) + 1
+        msg = deserialize_message(m.data, message_class(m.type))
+        for header in [getattr(msg, 'header', None)] + [
+                marker.header for marker in getattr(msg, 'markers', [])]:
+            if header is not None and header.frame_id:
+                used.setdefault(header.frame_id, m.topic)
+    reachable, todo = {'surface'}, ['surface']
+    while todo:
+        for child in children.get(todo.pop(), ()):
+            if child not in reachable:
+                reachable.add(child)
+                todo.append(child)
+    assert {'base_link', 'saw_camera', 'base_link_tracked'} <= reachable
+    assert set(used) <= reachable, {f: used[f] for f in set(used) - reachable}
+
+
 def test_the_tracker_reads_the_recorded_jpeg_stream_offline(graph_run, capsys):
     """saw-ros track on the bag: every frame tracked, the speed the nodes measured live."""
     from saw_ros.cli.main import main
