@@ -27,6 +27,7 @@ import numpy as np
 
 from saw_ros.core.contact import contact_step, ContactLaw, ContactState
 from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
+from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
 from saw_ros.core.motor import MotorLaw
 from saw_ros.core.params import ParameterError, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
@@ -117,6 +118,12 @@ class Simulator:
         self.reset()
 
     # -- parameters ----------------------------------------------------------------------------
+        # The drive from outside (core.drive, issue 22): a commanded voltage (V, (S,)) or helix
+        # frequency (Hz, (S,)) that overrides motor.voltage / conditions.frequency until cleared,
+        # or a voltage profile over the helix turn. None: the parameters drive.
+        self.commanded_voltage: Optional[np.ndarray] = None
+        self.commanded_frequency: Optional[np.ndarray] = None
+        self.profile: Optional[PhaseProfile] = None
     def set_scenarios(self, scenarios: Sequence[Scenario]) -> None:
         """Take new parameters (same robot and dt) at once, keeping the current state."""
         if len(scenarios) != self.count:
@@ -165,6 +172,8 @@ class Simulator:
         f_ext = np.array([c.external_force for c in cond])
         # Constant accelerations (gravity, tether) times dt, per degree of freedom.
         self._bias_dt = np.stack([-GRAVITY * np.sin(slope) - f_ext / mass,
+        if self.commanded_frequency is not None:
+            self._omega_dt = TWO_PI * self.commanded_frequency * self.dt
                                   -GRAVITY * np.cos(slope), np.zeros(self.count)]) * self.dt
 
     def reset(self) -> None:
@@ -197,7 +206,68 @@ class Simulator:
         self.motor = MotorLaw([s.motor for s in scenarios], self.dt)
         self._constant_omega = self._omega_dt / self.dt
         # A helix faster than this was driven by something no surface can supply.
-        self._runaway = 5.0 * (np.abs(self.motor.ideal) + self._constant_omega) + 1.0
+        ideal = np.abs(self.motor.ideal)
+        if self.profile is not None:
+            ideal = np.maximum(ideal, TWO_PI * self.motor.hz_per_volt * self.profile.peak)
+        self._runaway = 5.0 * (ideal + self._constant_omega) + 1.0
+
+    # -- the drive from outside (core.drive) ----------------------------------------------------
+    def command_voltage(self, voltage) -> None:
+        """
+        Drive the motor at ``voltage`` (V; scalar or (S,)) from the next step; None: motor.voltage.
+
+        Only scenarios whose motor is modelled (motor.voltage > 0 in their parameters) take a
+        voltage: 0 V then stops the helix against its friction, it does not leave the motor out.
+        """
+        if voltage is None:
+            self.commanded_voltage = None
+            if self.motor_on:
+                self.motor.set_voltage([s.motor.voltage for s in self.scenarios])
+                self._set_runaway()
+            return
+        if not self.motor_on:
+            raise ParameterError('no motor is modelled (motor.voltage = 0): command the helix '
+                                 'frequency instead')
+        voltage = np.broadcast_to(np.asarray(voltage, float), (self.count,)).copy()
+        if not np.isfinite(voltage).all() or (voltage < 0.0).any() or (
+                voltage > VOLTAGE_LIMIT).any():
+            raise ParameterError(f'commanded voltage {voltage} is invalid: must be finite, in '
+                                 f'[0, {VOLTAGE_LIMIT:g}] V')
+        self.commanded_voltage = voltage
+        self.motor.set_voltage(voltage)
+        self._set_runaway()
+
+    def command_frequency(self, frequency) -> None:
+        """Turn the helix at ``frequency`` (Hz) where no motor is modelled; None: the parameter."""
+        if frequency is None:
+            self.commanded_frequency = None
+            self._omega_dt = np.array([TWO_PI * s.frequency * self.dt for s in self.scenarios])
+        else:
+            frequency = np.broadcast_to(np.asarray(frequency, float), (self.count,)).copy()
+            if not np.isfinite(frequency).all() or (frequency < 0.0).any() or (
+                    frequency > FREQUENCY_LIMIT).any():
+                raise ParameterError(f'commanded frequency {frequency} is invalid: must be '
+                                     f'finite, in [0, {FREQUENCY_LIMIT:g}] Hz')
+            self.commanded_frequency = frequency
+            self._omega_dt = TWO_PI * frequency * self.dt
+        constant = ~self.driven
+        self.omega[constant] = self._omega_dt[constant] / self.dt
+        if self.motor_on:
+            self._constant_omega = self._omega_dt / self.dt
+            self._set_runaway()
+
+    def set_profile(self, profile: Optional[PhaseProfile]) -> None:
+        """Feed the motor ``profile``'s voltage at every step (None: stop feeding it)."""
+        if profile is not None and not self.motor_on:
+            raise ParameterError('a voltage profile needs the motor (motor.voltage > 0)')
+        if profile is not None and len(profile.mean) != self.count:
+            raise ParameterError(f'expected a profile for {self.count} scenarios, got '
+                                 f'{len(profile.mean)}')
+        self.profile = profile
+        if profile is None:
+            self.command_voltage(self.commanded_voltage)
+        else:
+            self._set_runaway()
 
     def _motor_step(self) -> None:
         """
@@ -208,6 +278,11 @@ class Simulator:
         to move the tips against their contact forces.
         """
         rate = self.rate_table.at(self.phase, out=self._rate, work=self._rate_work)
+        if self.commanded_voltage is not None:
+            self.motor.set_voltage(self.commanded_voltage)
+        self._set_runaway()
+
+    def _set_runaway(self) -> None:
         rate *= self._rot
         contacts = self.contacts
         # F = (Ft, -side Fn): F . r' = Ft r'x - side Fn r'y.
@@ -303,6 +378,8 @@ class Simulator:
                 f'pressed {self.penetration[i, tip] * 1000:.1f} mm into the {surface} surface, '
                 f'deeper than surface.max_penetration = '
                 f'{self._max_penetration[i] * 1000:.1f} mm (the robot was pushed through the '
+            if self.profile is not None:
+                self.motor.set_voltage(self.profile.voltage(self.phase))
                 f'surface: check the slope, resisting force and stiffness, or reduce '
                 f'integration.dt)')
 

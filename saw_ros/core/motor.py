@@ -36,6 +36,7 @@ class MotorLaw:
         self.inertia_dt = np.array([m.inertia for m in motors]) / dt
         # V / k written as the constant-frequency path writes 2 pi f, so that R = 0 turns the
         # helix bit for bit as conditions.frequency = hz_per_volt V does.
+        self.hz_per_volt = np.array([m.hz_per_volt for m in motors])
         self.ideal = np.array([TWO_PI * (m.hz_per_volt * m.voltage) for m in motors])
         # The step times R: w' (J R / dt + k^2) = J R w / dt + k V - R (tau_f sign(w') + load).
         self.c = self.inertia_dt * self.resistance + self.k ** 2
@@ -43,6 +44,12 @@ class MotorLaw:
         self.stick = self.friction * self.r_c
         self._has_r = self.resistance > 0.0
         self._safe_r = np.where(self._has_r, self.resistance, 1.0)
+
+    def set_voltage(self, voltage) -> None:
+        """Drive the motors at ``voltage`` (V, scalar or (S,)) from the next step on."""
+        self.voltage[:] = voltage
+        # The same expression as __init__'s, so a command equal to motor.voltage changes nothing.
+        np.multiply(TWO_PI, self.hz_per_volt * self.voltage, out=self.ideal)
 
     def step(self, omega: np.ndarray, load: np.ndarray) -> Tuple[np.ndarray, np.ndarray,
                                                                  np.ndarray]:
