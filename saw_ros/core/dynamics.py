@@ -26,8 +26,8 @@ from typing import Callable, Optional, Sequence, Union
 import numpy as np
 
 from saw_ros.core.contact import contact_step, ContactLaw, ContactState
-from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
+from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
 from saw_ros.core.motor import MotorLaw
 from saw_ros.core.params import ParameterError, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
@@ -113,17 +113,17 @@ class Simulator:
         self._work = np.zeros((self.count, tips))
         self._ones = np.ones(tips)
         self.penetration = np.zeros((self.count, tips))        # > 0 inside a surface, m
-        self.scenarios = scenarios
-        self.set_scenarios(scenarios)
-        self.reset()
-
-    # -- parameters ----------------------------------------------------------------------------
         # The drive from outside (core.drive, issue 22): a commanded voltage (V, (S,)) or helix
         # frequency (Hz, (S,)) that overrides motor.voltage / conditions.frequency until cleared,
         # or a voltage profile over the helix turn. None: the parameters drive.
         self.commanded_voltage: Optional[np.ndarray] = None
         self.commanded_frequency: Optional[np.ndarray] = None
         self.profile: Optional[PhaseProfile] = None
+        self.scenarios = scenarios
+        self.set_scenarios(scenarios)
+        self.reset()
+
+    # -- parameters ----------------------------------------------------------------------------
     def set_scenarios(self, scenarios: Sequence[Scenario]) -> None:
         """Take new parameters (same robot and dt) at once, keeping the current state."""
         if len(scenarios) != self.count:
@@ -164,6 +164,8 @@ class Simulator:
         self._level = np.where(side > 0, gap, 0.0) * side           # (S, P)
         self._side = side
         self._omega_dt = np.array([TWO_PI * s.frequency * self.dt for s in scenarios])
+        if self.commanded_frequency is not None:
+            self._omega_dt = TWO_PI * self.commanded_frequency * self.dt
         self._set_motor(scenarios)
         mass = np.array([s.robot.mass for s in scenarios])
         inertia = np.array([s.robot.inertia for s in scenarios])
@@ -172,8 +174,6 @@ class Simulator:
         f_ext = np.array([c.external_force for c in cond])
         # Constant accelerations (gravity, tether) times dt, per degree of freedom.
         self._bias_dt = np.stack([-GRAVITY * np.sin(slope) - f_ext / mass,
-        if self.commanded_frequency is not None:
-            self._omega_dt = TWO_PI * self.commanded_frequency * self.dt
                                   -GRAVITY * np.cos(slope), np.zeros(self.count)]) * self.dt
 
     def reset(self) -> None:
@@ -205,6 +205,12 @@ class Simulator:
         self._rate_work = np.zeros((self.count, tips), complex)
         self.motor = MotorLaw([s.motor for s in scenarios], self.dt)
         self._constant_omega = self._omega_dt / self.dt
+        # A helix faster than this was driven by something no surface can supply.
+        if self.commanded_voltage is not None:
+            self.motor.set_voltage(self.commanded_voltage)
+        self._set_runaway()
+
+    def _set_runaway(self) -> None:
         # A helix faster than this was driven by something no surface can supply.
         ideal = np.abs(self.motor.ideal)
         if self.profile is not None:
@@ -278,11 +284,42 @@ class Simulator:
         to move the tips against their contact forces.
         """
         rate = self.rate_table.at(self.phase, out=self._rate, work=self._rate_work)
-        if self.commanded_voltage is not None:
-            self.motor.set_voltage(self.commanded_voltage)
-        self._set_runaway()
+        rate *= self._rot
+        contacts = self.contacts
+        # F = (Ft, -side Fn): F . r' = Ft r'x - side Fn r'y.
+        np.multiply(contacts.tangential, rate.real, out=self._work)
+        load = -(self._work @ self._ones)
+        np.multiply(contacts.normal, rate.imag, out=self._work)
+        load += self._work @ self._side
+        omega = self.omega
+        new, torque, friction = self.motor.step(omega, load)
+        # Scenarios of the batch without a motor keep their constant speed (and have no motor
+        # torque, current or friction to report).
+        new = np.where(self.driven, new, self._constant_omega)
+        torque = np.where(self.driven, torque, np.nan)
+        friction = np.where(self.driven, friction, np.nan)
+        self.motor_torque[:] = torque
+        self.current[:] = torque / self.motor.k
+        self.load_torque[:] = load
+        self.friction_torque[:] = friction
+        omega[:] = new
+        if not (np.abs(new) <= self._runaway).all():
+            i = int(np.argmax(~(np.abs(new) <= self._runaway)))
+            raise DivergenceError(
+                f'simulation diverged at t = {self.t:.3f} s (scenario {i}): the helix turned at '
+                f'{new[i] / TWO_PI:.3g} Hz, far beyond the no-load speed of its motor, '
+                f'{self.motor.ideal[i] / TWO_PI:.3g} Hz (load torque {load[i]:.3g} N m); '
+                f'reduce integration.dt or soften the surfaces')
 
-    def _set_runaway(self) -> None:
+    def _motor_step(self) -> None:
+        """
+        Step the helix speed: the motor against the contacts of this step (docs/motor.md).
+
+        tau_load = -sum over tips of F . dr/dphase (F the surface's force on the tip, world
+        axes; dr/dphase the body-frame rate turned by the pitch): the torque the helix needs
+        to move the tips against their contact forces.
+        """
+        rate = self.rate_table.at(self.phase, out=self._rate, work=self._rate_work)
         rate *= self._rot
         contacts = self.contacts
         # F = (Ft, -side Fn): F . r' = Ft r'x - side Fn r'y.
@@ -346,6 +383,8 @@ class Simulator:
         q[3:] += forces
         q[:3] += q[3:] * self.dt
         if self.motor_on:
+            if self.profile is not None:
+                self.motor.set_voltage(self.profile.voltage(self.phase))
             self._motor_step()
             self.phase += self.omega * self.dt
         else:
@@ -378,8 +417,6 @@ class Simulator:
                 f'pressed {self.penetration[i, tip] * 1000:.1f} mm into the {surface} surface, '
                 f'deeper than surface.max_penetration = '
                 f'{self._max_penetration[i] * 1000:.1f} mm (the robot was pushed through the '
-            if self.profile is not None:
-                self.motor.set_voltage(self.profile.voltage(self.phase))
                 f'surface: check the slope, resisting force and stiffness, or reduce '
                 f'integration.dt)')
 
