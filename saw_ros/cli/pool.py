@@ -16,6 +16,7 @@ this machine;
 ``--scheduler tcp://host:8786`` runs the batches on that Dask cluster instead (docs/cluster.md).
 A scheduler that does not answer, or a worker without saw_ros, is a ``UserError`` (one line).
 """
+import math
 import os
 from typing import Optional
 
@@ -47,6 +48,9 @@ def pool_from_args(args) -> Pool:
     """Return the pool the flags of ``add_pool_arguments`` chose; a ``UserError`` if it fails."""
     if args.workers < 1:
         raise UserError(f'--workers must be at least 1, got {args.workers}')
+    if not args.scheduler_timeout > 0 or not math.isfinite(args.scheduler_timeout):
+        raise UserError(f'--scheduler-timeout {args.scheduler_timeout:g}: must be a finite time '
+                        f'> 0 s')
     try:
         return pool_from(args.scheduler, args.workers, args.scheduler_timeout)
     except PoolError as exc:

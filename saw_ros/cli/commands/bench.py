@@ -16,6 +16,7 @@ import time
 import traceback
 
 from saw_ros import bench as benchmarks
+from saw_ros.cli.checks import output_dir
 from saw_ros.cli.errors import UserError
 
 HELP = 'measure speed and accuracy figures (--json prints one JSON object)'
@@ -45,6 +46,7 @@ def run(args):
     if unknown:
         raise UserError(f'unknown benchmark(s) {sorted(unknown)}; known: {sorted(known)}')
     if args.logs:
+        output_dir(args.logs, '--logs')
         os.environ[benchmarks.LOGS_ENV] = args.logs
     results, errors = {}, {}
     for name, module in modules():

@@ -25,6 +25,7 @@ from pathlib import Path
 import sys
 import time
 
+from saw_ros.cli.checks import number, output_dir, output_file, text_file, YAML_SUFFIXES
 from saw_ros.cli.errors import UserError
 from saw_ros.cli.pool import add_pool_arguments, pool_from_args
 
@@ -42,7 +43,7 @@ def add_arguments(p):
                    'motor.friction_torque; bare names with shipped bounds also: '
                    'surface.normal_stiffness, surface.restitution, surface.hysteresis_speed)')
     p.add_argument('--out', type=Path, default=None,
-                   help='output folder (default out/calibrate_<date-time>)')
+                   help='output folder (default out/calibrate/<date-time>)')
     p.add_argument('--resume', type=Path, default=None, metavar='DIR',
                    help='continue the run saved in DIR (its targets, parameters, seed)')
     p.add_argument('--generations', type=int, default=None,
@@ -103,13 +104,20 @@ def run(args):
             if value < (2 if flag == 'popsize' else 1):
                 raise UserError(f'--{flag} must be at least {2 if flag == "popsize" else 1}')
             budget[flag] = value
+    # The optimiser's generator takes a 32-bit seed; outside it numpy raises deep in a generation.
+    number(args.seed, '--seed', '', 0, 2 ** 32 - 1)
     settings = cal.Settings(budget['generations'], budget['popsize'], args.seed, budget['sigma'])
     if args.write_worse and not args.write_config:
         raise UserError('--write-worse applies to --write-config, which was not given')
     if args.resume and (args.targets or args.params or args.out):
         raise UserError('--resume continues a saved run with its own targets, parameters and '
                         'folder: do not give --targets, --params or --out with it')
-    folder = args.resume or args.out or Path('out') / time.strftime('calibrate_%Y-%m-%d_%H-%M-%S')
+    folder = args.resume or args.out or Path('out/calibrate') / time.strftime('%Y-%m-%d_%H-%M-%S')
+    output_dir(folder, '--resume' if args.resume else '--out')
+    if args.targets:
+        text_file(args.targets, '--targets', 'targets file (CSV)')
+    if args.write_config:
+        output_file(args.write_config, '--write-config', YAML_SUFFIXES)
     try:
         targets = [] if args.resume else (
             cal.load_targets(args.targets) if args.targets else cal.paper_targets())

@@ -14,27 +14,38 @@ For example:
       # px_per_m or marker_spacing_m, notes); each video tracked, the condition simulated
   saw-ros campaign --scheduler tcp://host:8786       # simulate and track on a Dask cluster
 """
+import math
 from pathlib import Path
 import sys
 import time
 
 from saw_ros.analysis.campaign import (PAPER_SLOPES_DEG, PAPER_VOLTAGES, run_campaign,
                                        summarise, write_outputs)
+from saw_ros.analysis.compare import load_reference
+from saw_ros.cli.checks import output_dir, spec_number, text_file, video_input
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
+from saw_ros.cli.errors import UserError
 from saw_ros.cli.pool import add_pool_arguments, pool_from_args
-from saw_ros.core.params import ParameterError
+from saw_ros.core.params import ParameterError, Scenario
 from saw_ros.interface.config import config_path
 
 HELP = "run the paper's 20-condition validation campaign (simulation, camera, tracker)"
+# The two modes each have their own folder: one does not overwrite the other's table.
+DEFAULT_OUT = Path('out/campaign/paper')
+FOOTAGE_OUT = Path('out/campaign/footage')
 
 
-def _numbers(text, name):
+def _numbers(text, name, parameter, scale=1.0, unit=None):
+    """Return the comma-separated values of --``name``, each checked against its range."""
     try:
         values = [float(v) for v in text.split(',') if v.strip()]
     except ValueError:
-        raise ParameterError(f'--{name} expects comma-separated numbers, got {text!r}') from None
+        raise UserError(f'--{name} {text!r}: expects comma-separated numbers') from None
     if not values:
-        raise ParameterError(f'--{name} is empty')
+        raise UserError(f'--{name} is empty')
+    meta = {n: m for n, _, m in Scenario().describe()}[parameter]
+    for v in values:
+        spec_number(v, f'--{name}', meta, scale, unit, parameter)
     return values
 
 
@@ -44,7 +55,8 @@ def add_arguments(p):
                    'starts with a minus (default: -20,-10,0,10,20)')
     p.add_argument('--voltages', default=','.join(f'{v:g}' for v in PAPER_VOLTAGES),
                    help='motor voltages, comma-separated (default: 4,5,6,7)')
-    p.add_argument('--out', type=Path, default=Path('out/campaign'), help='output folder')
+    p.add_argument('--out', type=Path, default=None,
+                   help=f'output folder (default {DEFAULT_OUT}, with --videos {FOOTAGE_OUT})')
     p.add_argument('--videos', type=Path, default=None, metavar='MANIFEST.csv',
                    help='recorded runs instead of the virtual camera: a CSV with columns video, '
                    'slope_deg, voltage_V or frequency_hz, px_per_m or marker_spacing_m, notes '
@@ -60,16 +72,23 @@ def run_videos(args):
     """--videos: track each recorded run, simulate its condition, compare (analysis.footage)."""
     from saw_ros.analysis.footage import ManifestError, load_manifest, run_footage, \
         write_footage_outputs
-    from saw_ros.cli.errors import UserError
     from saw_ros.vision.video import VideoError
     base = scenario_from_args(args)
+    out = output_dir(args.out or FOOTAGE_OUT, '--out')
+    text_file(args.videos, '--videos', 'manifest (CSV)')
     start = time.perf_counter()
     try:
         runs = load_manifest(args.videos)
+        for r in runs:               # every video readable before the first is tracked
+            video_input(r.video, f'--videos {args.videos}: video')
+            try:
+                r.scenario(base)
+            except ParameterError as exc:
+                raise UserError(f'--videos {args.videos}: {r.video.name}: {exc}') from None
         results = run_footage(runs, base)
     except (ManifestError, VideoError) as exc:
         raise UserError(str(exc)) from exc
-    paths = write_footage_outputs(results, args.out)
+    paths = write_footage_outputs(results, out)
     summary = summarise([r.condition for r in results])
     print(f'{len(results)} videos in {time.perf_counter() - start:.1f} s')
     for r in results:
@@ -89,12 +108,19 @@ def run_videos(args):
 def run(args):
     if args.videos is not None:
         return run_videos(args)
-    slopes = _numbers(args.slopes, 'slopes')
-    voltages = _numbers(args.voltages, 'voltages')
+    slopes = _numbers(args.slopes, 'slopes', 'conditions.slope', math.pi / 180.0, 'deg')
+    voltages = _numbers(args.voltages, 'voltages', 'motor.voltage')
     base = scenario_from_args(args)
     for v in voltages:
         base.with_values({'motor.voltage': v})            # validates each voltage
+    out = output_dir(args.out or DEFAULT_OUT, '--out')
     reference = args.reference or config_path('reference_paper.csv')
+    # A reference that does not parse is found now, not after the whole campaign ran.
+    text_file(reference, '--reference', 'reference file (CSV)')
+    try:
+        load_reference(reference)
+    except ValueError as exc:
+        raise UserError(f'--reference {exc}') from None
     from tqdm import tqdm
     start = time.perf_counter()
     with pool_from_args(args) as pool, \
@@ -102,7 +128,7 @@ def run(args):
                  file=sys.stderr, disable=args.quiet, leave=False) as bar:
         results = run_campaign(slopes, voltages, base, reference, progress=bar.update,
                                pool=pool)
-    paths = write_outputs(results, args.out)
+    paths = write_outputs(results, out)
     summary = summarise(results)
     print(f'{len(results)} conditions in {time.perf_counter() - start:.1f} s')
     for v, e in summary['mean_relative_error_by_voltage'].items():

@@ -16,6 +16,7 @@ import time
 from saw_ros.analysis.bag_frames import bag_video
 from saw_ros.analysis.report import format_comparison, write_report
 from saw_ros.bag.reader import BagReadError
+from saw_ros.cli.checks import number, output_dir
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
 from saw_ros.cli.errors import UserError
 from saw_ros.graph.pipeline import PipelineError, run_pipeline
@@ -39,6 +40,12 @@ def add_arguments(p):
 def run(args):
     from saw_ros.core import Scenario
     scenario = scenario_from_args(args)
+    number(args.duration, '--duration', 's', 0.0, None, low_open=True)
+    # The simulator node's range for its real_time_factor.
+    number(args.real_time_factor, '--real-time-factor', '', 0.0, None,
+           description='simulated seconds per wall second, 0 = as fast as possible')
+    if args.out is not None:
+        output_dir(args.out, '--out')
     defaults = Scenario().flat()
     changed = {k: v for k, v in scenario.flat().items()
                if v != defaults[k] and k != 'integration.duration'}

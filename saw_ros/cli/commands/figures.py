@@ -2,14 +2,16 @@
 Regenerate the paper's figures from our model and hold it against the paper's claims.
 
 Writes one PNG and one CSV per figure into OUT/figures/ and the fidelity report OUT/fidelity.md
-(the paper's value, ours, the tolerance and the verdict for every claim). The committed copy
-lives in the repository's docs/: run `saw-ros figures` from the repository root to refresh it.
+(the paper's value, ours, the tolerance and the verdict for every claim); OUT is out/figures
+unless --out says otherwise. The committed copy lives in the repository's docs/: run
+`saw-ros figures --out docs` from the repository root to refresh it.
 
 figures: 4 (statics), 7 and 8 (time series, CCI), 9 (gap), 10 (stiffness), 11 (COF),
 20 and 21 (wave against worm).
 
 For example:
-  saw-ros figures                          # everything into ./docs
+  saw-ros figures                          # everything into out/figures
+  saw-ros figures --out docs               # refresh the committed copy
   saw-ros figures --out /tmp/repro --quick # coarse grids, a few seconds
   saw-ros figures --only 9,10 --out /tmp/repro
   saw-ros figures --workers 2              # the wave batch cut in two, one part per core
@@ -18,16 +20,19 @@ For example:
 from pathlib import Path
 import sys
 
+from saw_ros.cli.checks import output_dir, params_file
 from saw_ros.cli.errors import UserError
 from saw_ros.cli.pool import add_pool_arguments, pool_from_args
 
 HELP = "regenerate the paper's figures (PNG + CSV) and the fidelity report"
+# Not docs/: the committed copy is refreshed on purpose only (--out docs).
+DEFAULT_OUT = Path('out/figures')
 
 
 def add_arguments(p):
-    p.add_argument('--out', type=Path, default=Path('docs'),
-                   help='output directory: OUT/figures/*.png|csv and OUT/fidelity.md '
-                        '(default: ./docs)')
+    p.add_argument('--out', type=Path, default=DEFAULT_OUT,
+                   help=f'output directory: OUT/figures/*.png|csv and OUT/fidelity.md '
+                        f'(default: {DEFAULT_OUT}; --out docs refreshes the committed copy)')
     p.add_argument('--only', default='', help='comma-separated figure numbers '
                    '(4, 7, 8, 9, 10, 11, 20, 21); the report then covers their claims only')
     p.add_argument('--quick', action='store_true', help='coarse grids and 3 s runs')
@@ -45,16 +50,13 @@ def run(args):
     unknown = [w for w in wanted if w not in FIGURES]
     if unknown:
         raise UserError(f'unknown figure(s) {", ".join(unknown)}; known: {", ".join(FIGURES)}')
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f'cannot create {args.out}: {exc}') from None
+    output_dir(args.out, '--out')
     command = 'saw-ros figures' + (' --quick' if args.quick else '') + \
-        (f' --only {",".join(wanted)}' if args.only else '')
+        (f' --only {",".join(wanted)}' if args.only else '') + \
+        ('' if args.out == DEFAULT_OUT else f' --out {args.out}')
     calibrated = None if args.calibrated == 'none' else args.calibrated
     if calibrated not in (None, 'shipped'):
-        if not Path(calibrated).is_file():
-            raise UserError(f'no such calibrated parameter file: {calibrated}')
+        params_file(calibrated, '--calibrated')
         command += f' --calibrated {calibrated}'
     with pool_from_args(args) as pool:
         result = reproduce(args.out, wanted, quick=args.quick, progress=not args.quiet,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+from saw_ros.cli.checks import number, output_file, spec_number, VIDEO_SUFFIXES
 from saw_ros.cli.errors import UserError
 from saw_ros.core import Scenario
 from saw_ros.core.params import ConditionParams, spec_entries
@@ -48,7 +49,27 @@ def add_arguments(p):
         spec_option(p, RenderOptions, name)
 
 
+SPEC_FLAGS = ((ConditionParams, 'gap', '--gap'), (ConditionParams, 'frequency', '--frequency'),
+              (CameraModel, 'scale', '--px-per-m'), (CameraModel, 'width', '--width'),
+              (CameraModel, 'height', '--height'), (RenderOptions, 'noise', '--noise'),
+              (RenderOptions, 'exposure', '--exposure'),
+              (RenderOptions, 'brightness', '--brightness'))
+
+
+def check_arguments(args) -> None:
+    """Every flag against its spec() range, the output's kind: before anything is simulated."""
+    output_file(args.output, 'OUTPUT', VIDEO_SUFFIXES)
+    number(args.duration, '--duration', 's', 0.0, None, low_open=True)
+    number(args.fps, '--fps', 'Hz', 0.0, None, low_open=True)
+    (_, _, slope), = spec_entries(ConditionParams, ('slope',))
+    spec_number(args.slope_deg, '--slope-deg', slope, math.pi / 180.0, 'deg', 'conditions.slope')
+    for cls, name, flag in SPEC_FLAGS:
+        (_, _, meta), = spec_entries(cls, (name,))
+        spec_number(getattr(args, name), flag, meta)
+
+
 def run(args):
+    check_arguments(args)
     scenario = Scenario().with_values({'conditions.slope': math.radians(args.slope_deg),
                                        'conditions.gap': args.gap,
                                        'conditions.frequency': args.frequency})

@@ -17,9 +17,11 @@ import sys
 
 import numpy as np
 
+from saw_ros.analysis.shown import finite, shown
+from saw_ros.cli.checks import output_file, params_file, spec_number
+from saw_ros.cli.errors import UserError
 from saw_ros.core import DivergenceError, Scenario, Simulator
 from saw_ros.core.metrics import analyse
-from saw_ros.core.params import ParameterError
 from saw_ros.interface.config import load_scenario
 
 HELP = 'run one simulation and print AR, speed and CCI convergence (optionally a CSV)'
@@ -41,29 +43,51 @@ def add_scenario_arguments(p):
                    help='any model parameter by dotted name, SI units (repeatable)')
 
 
+# flag -> (the parameter it sets, SI per flag unit, the flag's unit; None: the parameter's)
+FLAGS = {'slope_deg': ('conditions.slope', math.pi / 180.0, 'deg'),
+         'gap_mm': ('conditions.gap', 1e-3, 'mm'),
+         'kn': ('surface.normal_stiffness', 1.0, None),
+         'kt': ('surface.tangential_stiffness', 1.0, None),
+         'mu': ('surface.friction_coefficient', 1.0, None),
+         'external_force': ('conditions.external_force', 1.0, None),
+         'frequency': ('conditions.frequency', 1.0, None),
+         'voltage': ('motor.voltage', 1.0, None)}
+
+
 def scenario_from_args(args) -> Scenario:
-    scenario = load_scenario(args.params_file) if args.params_file else Scenario()
+    """
+    Return the Scenario of the flags; a UserError names the first bad one.
+
+    Each human-unit flag is checked in its own unit against the range of the parameter it sets
+    (spec tables), before the whole set is validated together (the gap against the robot, ...).
+    """
+    if args.params_file is not None:
+        params_file(args.params_file)
+        scenario = load_scenario(args.params_file)
+    else:
+        scenario = Scenario()
+    meta = {name: m for name, _, m in scenario.describe()}
     values = {}
-    simple = {'slope_deg': ('conditions.slope', math.radians),
-              'gap_mm': ('conditions.gap', lambda v: v / 1000.0),
-              'kn': ('surface.normal_stiffness', float),
-              'kt': ('surface.tangential_stiffness', float),
-              'mu': ('surface.friction_coefficient', float),
-              'external_force': ('conditions.external_force', float),
-              'frequency': ('conditions.frequency', float), 'voltage': ('motor.voltage', float)}
-    for attr, (name, convert) in simple.items():
+    for attr, (name, scale, unit) in FLAGS.items():
         value = getattr(args, attr)
         if value is not None:
-            values[name] = convert(value)
+            flag = '--' + attr.replace('_', '-')
+            spec_number(value, flag, meta[name], scale, unit, name)
+            values[name] = value * scale
     for item in args.set:
         name, sep, text = item.partition('=')
+        name = name.strip()
         if not sep:
-            raise ParameterError(f'--set expects NAME=VALUE, got {item!r}')
+            raise UserError(f'--set {item!r}: write NAME=VALUE (saw-ros simulate --list)')
+        if name not in meta:
+            raise UserError(f'--set {name}: unknown parameter (saw-ros simulate --list names '
+                            f'them all)')
         try:
-            values[name.strip()] = int(text) if text.strip().lstrip('-').isdigit() and \
-                name.strip() == 'robot.wave_links' else float(text)
+            values[name] = int(text) if text.strip().lstrip('-').isdigit() and \
+                name == 'robot.wave_links' else float(text)
         except ValueError:
-            raise ParameterError(f'--set {name}: {text!r} is not a number') from None
+            raise UserError(f'--set {name}={text}: {text!r} is not a number') from None
+        spec_number(values[name], f'--set {name}', meta[name])
     return scenario.with_values(values)
 
 
@@ -73,6 +97,8 @@ def add_arguments(p):
                    help='simulated seconds (default: integration.duration, 5 s)')
     p.add_argument('--csv', type=Path, help='write the time series (pose, velocities, per-tip '
                    'forces, helix speed; with a motor its torque and current) to this CSV file')
+    p.add_argument('--plot', type=Path, metavar='PATH.png',
+                   help='write position and speed over time to this PNG')
     p.add_argument('--list', action='store_true', help='list every parameter with unit and range')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
 
@@ -89,7 +115,11 @@ def run(args):
     scenario = scenario_from_args(args)
     duration = args.duration if args.duration is not None else scenario.integration.duration
     if not math.isfinite(duration) or duration <= 0:
-        raise ParameterError(f'--duration {duration} must be > 0 s')
+        raise UserError(f'--duration {duration:g}: must be a finite time > 0 s')
+    if args.csv is not None:
+        output_file(args.csv, '--csv', ('.csv',))
+    if args.plot is not None:
+        output_file(args.plot, '--plot', ('.png',))
     sim = Simulator(scenario)
     steps = int(round(duration / sim.dt))
     from tqdm import tqdm
@@ -114,16 +144,48 @@ def run(args):
           f'kt {scenario.surface.tangential_stiffness:g} N/m, '
           f'mu {scenario.surface.friction_coefficient:g}, F_ext {c.external_force:g} N, '
           f'{duration:g} s')
-    print(f'v_theory            {m.v_theory * 100:8.3f} cm/s')
-    print(f'v (steady mean)     {m.v_mean * 100:8.3f} cm/s')
-    print(f'AR                  {m.advance_ratio:8.4f}')
+    still = m.frequency <= 0.0
+    why_ar = ('not defined: the helix does not turn (0 Hz); give --frequency or --voltage above '
+              '0' if still else 'not computed')
+    print(f'v_theory            {shown(m.v_theory, "8.3f", " cm/s", scale=100)}')
+    if m.steady_from is None and not still:
+        # The mean is then over whole cycles from the middle of the run: say it is not steady.
+        label = 'v (not steady)'
+        note = (f'  steady state not reached within {duration:g} s: run longer (--duration '
+                f'{2 * duration:g})')
+    else:
+        label, note = 'v (mean)' if still else 'v (steady mean)', ''
+    print(f'{label:19s} {shown(m.v_mean, "8.3f", " cm/s", "not computed", 100)}{note}')
+    print(f'AR                  {shown(m.advance_ratio, "8.4f", why=why_ar)}'
+          f'{"  (not steady)" if note and finite(m.advance_ratio) else ""}')
     print(f'steady state from   {_fmt(m.steady_from)}  (CCI of vx < 2 %)')
     print(f'CCI < 2 %   after   {_fmt(m.cci_2pct_after)}  (all velocities)')
     print(f'CCI < 0.2 % after   {_fmt(m.cci_02pct_after)}')
     if args.csv:
         write_csv(args.csv, tr)
         print(f'time series written to {args.csv}')
+    if args.plot:
+        plot(args.plot, tr, m, scenario, duration)
+        print(f'plot written to {args.plot}')
     return 0
+
+
+def plot(path, tr, m, scenario, duration):
+    """--plot: position and speed of the run, the steady mean and v_theory, as the demo's."""
+    from saw_ros.cli.plot import write_time_plot
+    q = tr.q[:, 0]
+    levels = [(f'v_theory {shown(m.v_theory, ".2f", " cm/s", scale=100)}', m.v_theory)]
+    if finite(m.v_mean) and m.steady_from is not None:
+        levels.insert(0, (f'steady mean {100 * m.v_mean:.2f} cm/s', m.v_mean))
+    c = scenario.conditions
+    title = (f'simulation: slope {math.degrees(c.slope):.0f} deg, {m.frequency:.2f} Hz; AR '
+             f'{shown(m.advance_ratio, ".3f", why="not defined")}'
+             + ('' if m.steady_from is not None else f' (not steady within {duration:g} s)'))
+    window = (m.steady_from, float(tr.t[-1])) if m.steady_from is not None else None
+    write_time_plot(path, title, [('simulation', tr.t, q[:, 0])],
+                    [('simulation vx', tr.t, q[:, 3])], [lv for lv in levels
+                                                         if finite(lv[1])], window,
+                    'simulated time (s)')
 
 
 def write_csv(path: Path, tr) -> None:

@@ -10,7 +10,9 @@ For example:
 """
 import math
 
+from saw_ros.cli.checks import number, spec_number
 from saw_ros.cli.errors import UserError
+from saw_ros.core.params import Scenario
 
 HELP = 'minimal normal forces and top-surface threshold (paper Eqs. 3-5, Figure 4)'
 
@@ -27,14 +29,17 @@ def run(args):
     from saw_ros.core.dynamics import GRAVITY
     from saw_ros.core.statics import (FIGURE4_CASES, minimal_normal_forces, StaticCase,
                                       top_surface_needed_above)
-    if not -90.0 <= args.slope_deg <= 90.0:
-        raise UserError(f'--slope-deg {args.slope_deg} must be in [-90, 90]')
+    meta = {name: m for name, _, m in Scenario().describe()}
+    spec_number(args.slope_deg, '--slope-deg', meta['conditions.slope'], math.pi / 180.0, 'deg',
+                'conditions.slope')
+    spec_number(args.mass, '--mass', meta['robot.mass'], name='robot.mass')
     if (args.fext_mg is None) != (args.mu is None):
         raise UserError("give both --fext-mg and --mu, or neither (Figure 4's cases)")
-    if args.mu is not None and not args.mu > 0:
-        raise UserError(f'--mu {args.mu} must be > 0')
-    if args.mass <= 0:
-        raise UserError(f'--mass {args.mass} must be > 0')
+    if args.mu is not None:
+        # mu = 0 holds nothing: the statics divide by it.
+        spec_number(args.mu, '--mu', dict(meta['surface.friction_coefficient'], low_open=True),
+                    name='surface.friction_coefficient')
+        number(args.fext_mg, '--fext-mg', 'm g')
     cases = FIGURE4_CASES if args.mu is None else (StaticCase('custom', args.fext_mg, args.mu),)
     mg = args.mass * GRAVITY
     print(f'slope {args.slope_deg:g} deg, m g = {mg:.3f} N')

@@ -30,7 +30,9 @@ import typing
 
 import numpy as np
 
+from saw_ros.cli.checks import number, output_file, spec_number, video_input
 from saw_ros.cli.errors import UserError
+from saw_ros.core.params import spec_entries
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.offline import measure_scale, SCALE_FRAMES, track_video  # noqa: F401
 from saw_ros.vision.tracker import scale_from_spacing, TrackerConfig, TrackStatus
@@ -108,6 +110,9 @@ def add_arguments(p):
                    metavar='K1,K2,P1,P2[,K3]', help='lens distortion coefficients (OpenCV '
                                                     'order): marker centres are undistorted')
     g.add_argument('--csv', type=Path, default=None, help='write one row per frame here')
+    g.add_argument('--plot', type=Path, default=None, metavar='PATH.png',
+                   help='write the tracked position and speed over time to this PNG')
+    g.add_argument('--quiet', action='store_true', help='no progress bar')
     m = p.add_argument_group('markers and tracker (saw_ros.vision.tracker.TrackerConfig)')
     for name, flag, kw in config_options():
         m.add_argument(flag, dest=name, **kw)
@@ -128,7 +133,6 @@ def _cells(k, r):
 def _source(path, fps: float):
     """Return the frames to track: a recording's camera stream, or the video file."""
     from saw_ros.analysis.bag_frames import BagFrames
-    from saw_ros.vision.offline import VideoFile
     p = Path(path)
     if p.suffix == '.mcap' or (p.is_dir() and (p / 'metadata.yaml').exists()):
         from saw_ros.bag.reader import BagReadError
@@ -136,7 +140,7 @@ def _source(path, fps: float):
             return BagFrames(p)
         except BagReadError as exc:
             raise UserError(str(exc)) from None
-    return VideoFile(path, fps)
+    return video_input(path, 'VIDEO', fps)
 
 
 def run(args):
@@ -144,8 +148,18 @@ def run(args):
         config = config_from_args(args)
     except ValueError as exc:
         raise UserError(str(exc)) from exc
-    if args.px_per_m is not None and not args.px_per_m > 0:
-        raise UserError(f'--px-per-m = {args.px_per_m} must be > 0')
+    if args.px_per_m is not None:
+        (_, _, scale), = spec_entries(CameraModel, ('scale',))
+        spec_number(args.px_per_m, '--px-per-m', scale)
+    number(args.fps, '--fps', 'Hz (0: the rate the file says)', 0.0, None)
+    (_, _, slope), = spec_entries(CameraModel, ('slope',))
+    spec_number(args.slope_deg, '--slope-deg', slope, math.pi / 180.0, 'deg')
+    number(args.center_x, '--center-x', 'm')
+    number(args.center_y, '--center-y', 'm')
+    if args.csv is not None:
+        output_file(args.csv, '--csv', ('.csv',))
+    if args.plot is not None:
+        output_file(args.plot, '--plot', ('.png',))
     if args.px_per_m is None and config.marker_spacing is None:
         raise UserError('give the scale: --px-per-m (pixels per metre, from a ruler in the '
                         "picture) or --marker-spacing-m (the markers' distance on the robot)")
@@ -170,7 +184,8 @@ def run(args):
             scale_text = (f'scale: {scale:.2f} px/m from the marker spacing '
                           f'{config.marker_spacing:g} m (--marker-spacing-m; median of {n} '
                           f'frames, spread +-{spread:.2f} px)')
-        results, tracker = track_video(source, dict(camera_kw, scale=scale), config)
+        results, tracker = track_video(Progress(source, args.quiet), dict(camera_kw, scale=scale),
+                                       config)
     except (VideoError, ValueError) as exc:
         raise UserError(str(exc)) from exc
     if args.csv is not None:
@@ -206,9 +221,54 @@ def run(args):
         (r.steady_speed for r in reversed(ok) if r.steady_speed is not None), None)
     if steady is None:
         print(f'steady-state speed: not available (the run is shorter than '
-              f'{config.steady_window * config.steady_fill:g} s of tracked frames)')
+              f'{config.steady_window * config.steady_fill:g} s of tracked frames): track a '
+              f'longer clip, or give a shorter --steady-window)')
     else:
         print(f'steady-state speed (last {config.steady_window:g} s): {steady * 100:.3f} cm/s')
     if args.csv is not None:
         print(f'per-frame table: {args.csv}')
+    if args.plot is not None:
+        plot(args.plot, args.video, results, steady, config)
+        print(f'plot: {args.plot}')
     return 0
+
+
+class Progress:
+    """A frame source that shows a progress bar on stderr while its frames are read."""
+
+    def __init__(self, source, quiet: bool = False):
+        self.source, self.quiet = source, quiet
+
+    @property
+    def size(self):
+        return self.source.size
+
+    def frames(self):
+        from tqdm import tqdm
+        total = getattr(self.source, 'count', None)
+        if total is None:
+            from saw_ros.vision.video import video_info
+            total = video_info(self.source.path)[1] or None
+        # disable=None: only on a terminal; logs and pipes get no carriage-return lines.
+        with tqdm(total=total, unit='frame', desc='track', file=sys.stderr, leave=False,
+                  disable=True if self.quiet else None) as bar:
+            for item in self.source.frames():
+                yield item
+                bar.update()
+
+
+def plot(path, video, results, steady, config) -> None:
+    """--plot: tracked position, instantaneous and smoothed speed, the steady-state speed."""
+    from saw_ros.cli.plot import write_time_plot
+    ok = [r for r in results if r.ok]
+    fast = [r for r in ok if r.velocity is not None]
+    smooth = [r for r in ok if r.velocity_smoothed is not None]
+    levels = [] if steady is None else [(f'steady {100 * steady:.2f} cm/s', steady)]
+    t_end = results[-1].t
+    window = None if steady is None else (max(results[0].t, t_end - config.steady_window), t_end)
+    write_time_plot(path, f'tracking {Path(str(video)).name}: {len(ok)} of {len(results)} '
+                    f'frames with both markers', [('tracked', [r.t for r in ok],
+                                                   [r.position.real for r in ok])],
+                    [('instantaneous', [r.t for r in fast], [r.velocity.real for r in fast]),
+                     ('smoothed', [r.t for r in smooth],
+                      [r.velocity_smoothed.real for r in smooth])], levels, window)

@@ -1,0 +1,181 @@
+"""
+Bad input to every `saw-ros` subcommand: exit code 2, one line naming the input, no traceback.
+
+The table is what a newcomer types wrong (issue 20); add every mistake a user finds. Each case
+runs `saw-ros` as a user would, in a fresh folder (nothing lands in the repository), with a time
+limit: a check that comes after the long work would show as a timeout.
+"""
+from pathlib import Path
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+VIDEO = str(ROOT / 'samples' / 'footage' / 'level_6V.mp4')
+MANIFEST = str(ROOT / 'samples' / 'footage' / 'manifest.csv')
+BAG = str(ROOT / 'bags' / 'reference_default')        # no camera frames in it
+CAMERA_BAG = str(ROOT / 'bags' / 'reference_camera')
+TIMEOUT_S = 90.0
+
+# (subcommand and arguments, a piece of the one line it must print); {d} is the case's folder,
+# which holds text.txt, text.mp4 (text with a video's name), bad.yaml (not YAML), list.yaml
+# (YAML, not a mapping), a folder dir/ and manifests whose rows are wrong.
+CASES = [
+    ('', 'required: COMMAND'),
+    ('nosuch', "invalid choice: 'nosuch'"),
+    # statics
+    ('statics --slope-deg 100', '--slope-deg = 100 is out of range: allowed [-90, 90] deg'),
+    ('statics --slope-deg nan', '--slope-deg = nan'),
+    ('statics --slope-deg abc', "--slope-deg: invalid float value: 'abc'"),
+    ('statics --mass -1', '--mass = -1 is out of range: allowed (0, inf) kg'),
+    ('statics --mu 0 --fext-mg 1', '--mu = 0 is out of range'),
+    ('statics --mu 0.5', 'give both --fext-mg and --mu'),
+    ('statics --mu 1 --fext-mg inf', '--fext-mg = inf'),
+    ('statics --slopes 3', 'unrecognized arguments: --slopes 3'),
+    # simulate
+    ('simulate --duration -1', '--duration -1: must be a finite time > 0 s'),
+    ('simulate --duration nan', '--duration nan'),
+    ('simulate --duration inf', '--duration inf'),
+    ('simulate --slope-deg 100', '--slope-deg = 100 is out of range: allowed [-90, 90] deg'),
+    ('simulate --gap-mm 10', 'conditions.gap = 0.01 m is invalid'),
+    ('simulate --kn -5', '--kn = -5 is out of range'),
+    ('simulate --mu 9', '--mu = 9 is out of range: allowed [0, 5]'),
+    ('simulate --frequency -1', '--frequency = -1 is out of range'),
+    ('simulate --voltage 100', '--voltage = 100 is out of range: allowed [0, '),
+    ('simulate --set foo=1', '--set foo: unknown parameter'),
+    ('simulate --set surface.restitution', "--set 'surface.restitution': write NAME=VALUE"),
+    ('simulate --set surface.restitution=abc', "'abc' is not a number"),
+    ('simulate --set surface.restitution=2', '--set surface.restitution = 2 is out of range'),
+    ('simulate --set robot.wave_links=2.5', 'must be an integer'),
+    ('simulate --params-file {d}/none.yaml', '--params-file {d}/none.yaml: no such'),
+    ('simulate --params-file {d}/bad.yaml', '--params-file {d}/bad.yaml: is not valid YAML'),
+    ('simulate --params-file {d}/list.yaml', 'is not a parameter file'),
+    ('simulate --params-file {d}/dir', 'is a folder'),
+    ('simulate --params-file ' + VIDEO, 'is not a text parameter file'),
+    ('simulate --csv {d}/text.txt/run.csv', 'cannot be written: {d}/text.txt is a file'),
+    ('simulate --csv {d}/run.txt', '--csv {d}/run.txt: must end in .csv'),
+    ('simulate --csv {d}/dir.csv', '--csv {d}/dir.csv: is a folder'),
+    ('simulate --plot {d}/run.jpg', '--plot {d}/run.jpg: must end in .png'),
+    # render
+    ('render {d}/out.txt', 'OUTPUT {d}/out.txt: must end in .mp4 or .avi'),
+    ('render {d}/text.txt/out.mp4', 'cannot be written'),
+    ('render {d}/out.mp4 --duration -1', '--duration = -1 is out of range: allowed (0, inf) s'),
+    ('render {d}/out.mp4 --fps 0', '--fps = 0 is out of range'),
+    ('render {d}/out.mp4 --px-per-m -1', '--px-per-m = -1 is out of range'),
+    ('render {d}/out.mp4 --width 8', '--width = 8 is out of range: allowed [16, inf) px'),
+    ('render {d}/out.mp4 --gap 0.01', 'conditions.gap = 0.01 m is invalid'),
+    ('render {d}/out.mp4 --slope-deg 91', '--slope-deg = 91 is out of range'),
+    ('render {d}/out.mp4 --noise -1', '--noise = -1 is out of range'),
+    ('render', 'required: output'),
+    # track
+    ('track {d}/none.mp4 --px-per-m 600', 'VIDEO {d}/none.mp4: no such video file'),
+    ('track {d}/text.mp4 --px-per-m 600', 'VIDEO {d}/text.mp4: not a video OpenCV can decode'),
+    ('track {d}/text.txt --px-per-m 600', 'not a video OpenCV can decode'),
+    ('track {d}/dir --px-per-m 600', 'VIDEO {d}/dir: is a folder'),
+    ('track ' + VIDEO, 'give the scale'),
+    ('track ' + VIDEO + ' --px-per-m -5', '--px-per-m = -5 is out of range'),
+    ('track ' + VIDEO + ' --px-per-m 600 --csv {d}/track.txt', 'must end in .csv'),
+    ('track ' + VIDEO + ' --px-per-m 600 --csv {d}/text.txt/t.csv', 'cannot be written'),
+    ('track ' + VIDEO + ' --px-per-m 600 --plot {d}/p.pdf', 'must end in .png'),
+    ('track ' + VIDEO + ' --px-per-m 600 --fps -1', '--fps = -1 is out of range'),
+    ('track ' + VIDEO + ' --px-per-m 600 --slope-deg 100', '--slope-deg = 100'),
+    ('track ' + VIDEO + ' --px-per-m 600 --center-x nan', '--center-x = nan'),
+    ('track ' + VIDEO + ' --px-per-m 600 --roi 1,2', 'argument --roi'),
+    ('track ' + VIDEO + ' --marker-spacing-m -1', 'marker_spacing'),
+    ('track ' + VIDEO + ' --px-per-m 600 --dist-coeffs 0,0,0,0', 'go together'),
+    ('track ' + BAG + ' --px-per-m 600', 'holds no frames'),
+    ('track {d}/none.mcap --px-per-m 600', 'none.mcap'),
+    # campaign
+    ('campaign --reference {d}/none.csv', '--reference {d}/none.csv: no such reference file'),
+    ('campaign --reference {d}/text.txt', 'needs columns slope_deg, voltage_V'),
+    ('campaign --reference ' + VIDEO, 'is not a text reference file'),
+    ('campaign --slopes abc', "--slopes 'abc': expects comma-separated numbers"),
+    ('campaign --slopes=100', '--slopes = 100 is out of range: allowed [-90, 90] deg'),
+    ('campaign --voltages=-1', '--voltages = -1 is out of range: allowed [0, '),
+    ('campaign --voltages ,', '--voltages is empty'),
+    ('campaign --out {d}/text.txt', '--out {d}/text.txt: is a file, not a folder'),
+    ('campaign --workers 0', '--workers must be at least 1'),
+    ('campaign --scheduler-timeout -1', '--scheduler-timeout -1'),
+    ('campaign --gap-mm 5', 'conditions.gap = 0.005 m is invalid'),
+    ('campaign --videos {d}/none.csv', '--videos {d}/none.csv: no such manifest'),
+    ('campaign --videos {d}/text.txt', 'columns must be video, slope_deg'),
+    ('campaign --videos ' + VIDEO, 'is not a text manifest'),
+    ('campaign --videos {d}/text_video.csv', 'video {d}/text.mp4: not a video OpenCV can decode'),
+    ('campaign --videos {d}/no_video.csv', 'no such video file'),
+    ('campaign --videos {d}/volts.csv', 'motor.voltage = 99 is out of range'),
+    ('campaign --videos {d}/no_scale.csv', 'give the scale'),
+    ('campaign --videos ' + MANIFEST + ' --out {d}/text.txt', 'is a file, not a folder'),
+    # figures
+    ('figures --only 5', 'unknown figure(s) 5'),
+    ('figures --out {d}/text.txt', '--out {d}/text.txt: is a file, not a folder'),
+    ('figures --calibrated {d}/none.yaml', '--calibrated {d}/none.yaml: no such'),
+    ('figures --calibrated {d}/bad.yaml', 'is not valid YAML'),
+    ('figures --workers 0', '--workers must be at least 1'),
+    # calibrate
+    ('calibrate --quick --targets {d}/none.csv', '--targets {d}/none.csv: no such'),
+    ('calibrate --quick --targets {d}/text.txt', 'needs columns slope_deg'),
+    ('calibrate --quick --targets ' + VIDEO, 'is not a text targets file'),
+    ('calibrate --quick --params surface.stiffness', "unknown parameter 'surface.stiffness'"),
+    ('calibrate --quick --params motor.resistance:5:1', 'must be finite, low < high'),
+    ('calibrate --quick --generations 0', '--generations must be at least 1'),
+    ('calibrate --quick --popsize 1', '--popsize must be at least 2'),
+    ('calibrate --quick --seed -1', '--seed = -1 is out of range'),
+    ('calibrate --quick --out {d}/text.txt', 'is a file, not a folder'),
+    ('calibrate --quick --write-config {d}/c.txt', 'must end in .yaml or .yml'),
+    ('calibrate --quick --write-config {d}/text.txt/c.yaml', 'cannot be written'),
+    ('calibrate --quick --write-worse', '--write-worse applies to --write-config'),
+    ('calibrate --resume {d}/dir', 'nothing to resume'),
+    ('calibrate --resume {d}/text.txt', 'is a file, not a folder'),
+    ('calibrate --resume {d}/dir --targets x.csv', 'do not give'),
+    # demo: refused before any node starts
+    ('demo --duration -1', '--duration = -1 is out of range'),
+    ('demo --real-time-factor -1', '--real-time-factor = -1 is out of range'),
+    ('demo --out {d}/text.txt', 'is a file, not a folder'),
+    ('demo --slope-deg 100', '--slope-deg = 100'),
+    ('demo --params-file {d}/bad.yaml', 'is not valid YAML'),
+    # bench
+    ('bench --only nosuch', "unknown benchmark(s) ['nosuch']"),
+    ('bench --only core --logs {d}/text.txt', '--logs {d}/text.txt: is a file, not a folder'),
+]
+
+
+def _saw_ros():
+    """Return the installed command next to this interpreter, else the module it runs."""
+    exe = Path(sys.executable).parent / 'saw-ros'
+    return [str(exe)] if exe.exists() else [sys.executable, '-m', 'saw_ros.cli.main']
+
+
+@pytest.fixture
+def folder(tmp_path):
+    (tmp_path / 'text.txt').write_text('hello\n')
+    (tmp_path / 'text.mp4').write_text('not a video\n')
+    (tmp_path / 'bad.yaml').write_text('simulator: [1,\n')
+    (tmp_path / 'list.yaml').write_text('- 1\n- 2\n')
+    (tmp_path / 'dir').mkdir()
+    (tmp_path / 'dir.csv').mkdir()
+    header = 'video,slope_deg,voltage_V,px_per_m\n'
+    (tmp_path / 'text_video.csv').write_text(header + 'text.mp4,0,6,600\n')
+    (tmp_path / 'no_video.csv').write_text(header + 'none.mp4,0,6,600\n')
+    shutil.copy(VIDEO, tmp_path / 'level.mp4')
+    (tmp_path / 'volts.csv').write_text(header + 'level.mp4,0,99,600\n')
+    (tmp_path / 'no_scale.csv').write_text(header + 'level.mp4,0,6,\n')
+    return tmp_path
+
+
+@pytest.mark.parametrize('command, expected', CASES, ids=[c or '(none)' for c, _ in CASES])
+def test_bad_input_is_one_line_and_exit_code_2(folder, command, expected):
+    args = [a.replace('{d}', str(folder)) for a in command.split()]
+    done = subprocess.run(_saw_ros() + args, cwd=folder, capture_output=True, text=True,
+                          timeout=TIMEOUT_S, stdin=subprocess.DEVNULL)
+    err = done.stderr
+    assert 'Traceback' not in err, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert expected.replace('{d}', str(folder)) in err, err
+    assert done.returncode == 2, (done.returncode, err)
+    assert err.startswith('saw-ros'), err
+    # Refused before anything was written: the folder holds only what the fixture made.
+    made = {'text.txt', 'text.mp4', 'bad.yaml', 'list.yaml', 'dir', 'dir.csv',
+            'text_video.csv', 'no_video.csv', 'level.mp4', 'volts.csv', 'no_scale.csv'}
+    assert {p.name for p in folder.iterdir()} == made
