@@ -14,7 +14,10 @@ core and the local runs never need it.
 """
 from __future__ import annotations
 
+from concurrent.futures import CancelledError
 import importlib.util
+import threading
+import time
 from typing import Callable, Iterable, Iterator, Optional
 
 from saw_ros.core.pool import LocalPool, Pool, PoolError
@@ -37,17 +40,14 @@ class DaskPool:
             raise PoolError('--scheduler needs the Python package distributed '
                             '(pip install -r requirements.txt)') from None
         self.address = address
+        self.timeout = timeout
         try:
             # Checked first: a Client given a malformed address hangs for seconds when collected.
             distributed.comm.get_address_host_port(address)
         except ValueError as exc:
             raise PoolError(f'{address!r} is not a Dask scheduler address such as '
                             f'tcp://host:8786 ({_one_line(exc)})') from None
-        try:
-            self.client = distributed.Client(address, timeout=timeout, set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise PoolError(f'cannot reach the Dask scheduler at {address} within {timeout:g} s '
-                            f'({_one_line(exc)})') from None
+        self.client = _connect(distributed, address, timeout)
         try:
             self.workers = self._threads()
             if not self.workers:
@@ -66,7 +66,11 @@ class DaskPool:
         return f'DaskPool({self.address!r}, workers={self.workers})'
 
     def _threads(self) -> int:
-        info = self.client.scheduler_info(n_workers=-1)['workers']
+        try:
+            info = self.client.scheduler_info(n_workers=-1)['workers']
+        except Exception as exc:  # noqa: BLE001  (a server that answered, but not as Dask)
+            raise PoolError(f'{self.address} answered, but not as a Dask scheduler '
+                            f'({_one_line(exc)})') from None
         return sum(int(w.get('nthreads', 1)) for w in info.values())
 
     def check_workers(self) -> None:
@@ -88,14 +92,41 @@ class DaskPool:
         futures = self.client.map(function, list(jobs), pure=False)
         try:
             for future in futures:
-                try:
-                    yield future.result()
-                except ImportError as exc:
-                    self.check_workers()
-                    raise PoolError(f'a Dask worker of {self.address} failed to import: '
-                                    f'{_one_line(exc)}') from None
+                yield self._result(future)
         finally:
-            self.client.cancel(futures)
+            try:
+                self.client.cancel(futures)
+            except Exception:  # noqa: BLE001  (the scheduler is gone: nothing to cancel)
+                pass
+
+    def _result(self, future):
+        """
+        Return the result of one job; PoolError if the scheduler is lost while waiting.
+
+        A job may run as long as it needs, but a scheduler that stays unreachable for the
+        connection timeout is lost: the client would otherwise try to reconnect for ever.
+        """
+        from distributed import TimeoutError as DaskTimeout
+        unreachable = None
+        while True:
+            try:
+                return future.result(timeout=1.0)
+            except ImportError as exc:
+                self.check_workers()
+                raise PoolError(f'a Dask worker of {self.address} failed to import: '
+                                f'{_one_line(exc)}') from None
+            except (DaskTimeout, TimeoutError):
+                pass
+            except (CancelledError, OSError) as exc:   # CommClosedError is an OSError
+                raise PoolError(f'lost the Dask scheduler at {self.address} mid-run '
+                                f'({_one_line(exc) or type(exc).__name__})') from None
+            if self.client.status == 'running':
+                unreachable = None
+            elif unreachable is None:
+                unreachable = time.monotonic()
+            elif time.monotonic() - unreachable > self.timeout:
+                raise PoolError(f'lost the Dask scheduler at {self.address} mid-run (unreachable '
+                                f'for {self.timeout:g} s)')
 
     def close(self) -> None:
         """Disconnect (the cluster keeps running)."""
@@ -106,6 +137,51 @@ class DaskPool:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _connect(distributed, address: str, timeout: float):
+    """
+    Return a Client of the scheduler at ``address``; PoolError within about ``timeout`` s.
+
+    A probe shakes hands first, bounded by ``timeout``: distributed bounds the TCP connection
+    but not the handshake after it, so a server that accepts and never answers (not Dask) held
+    the Client for ever, and one that answers something else raised whatever its bytes made of
+    the frames (a MemoryError for 2.8 EiB); a Client that failed so also printed a traceback
+    when collected. The probe runs on a thread of its own, given up on after the timeout.
+    """
+    import asyncio
+
+    async def shake():
+        comm = await asyncio.wait_for(distributed.comm.connect(address, timeout=timeout),
+                                      timeout)
+        await comm.close()
+
+    out: dict = {}
+
+    def probe():
+        try:
+            asyncio.run(shake())
+        except BaseException as exc:  # noqa: BLE001  (reported below, in one line)
+            out['error'] = exc
+
+    thread = threading.Thread(target=probe, name='dask-probe', daemon=True)
+    thread.start()
+    thread.join(timeout + 2.0)
+    exc = out.get('error')
+    if thread.is_alive() or isinstance(exc, TimeoutError):
+        raise PoolError(f'no Dask scheduler answered at {address} within {timeout:g} s '
+                        '(nothing there, or something else listens)')
+    if isinstance(exc, OSError):
+        raise PoolError(f'cannot reach the Dask scheduler at {address} within {timeout:g} s '
+                        f'({_one_line(exc)})')
+    if exc is not None:
+        raise PoolError(f'{address} does not answer as a Dask scheduler '
+                        f'({type(exc).__name__}: {_one_line(exc)[:200]})')
+    try:
+        return distributed.Client(address, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise PoolError(f'cannot reach the Dask scheduler at {address} within {timeout:g} s '
+                        f'({_one_line(exc)})') from None
 
 
 def _one_line(exc: BaseException) -> str:

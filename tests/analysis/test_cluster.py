@@ -1,6 +1,7 @@
 """Sweeps on a Dask cluster give the local pool's numbers, bit for bit; its failures are clear."""
 import csv
 import math
+import os
 import time
 
 import numpy as np
@@ -134,3 +135,74 @@ def test_campaign_on_the_cluster_equals_the_local_pool(scheduler):
         remote = run_campaign((20.0,), (6.0,), pool=pool)
     numbers = [np.array(list(vars(r).values()), float) for r in local + remote]
     assert np.array_equal(numbers[0], numbers[1], equal_nan=True)
+
+
+class _NotDask:
+    """A plain TCP server on localhost: silent, or answering with another protocol's banner."""
+
+    def __init__(self, banner: bytes):
+        import socket
+        import threading
+        self.sock = socket.create_server(('127.0.0.1', 0))
+        self.address = f'tcp://127.0.0.1:{self.sock.getsockname()[1]}'
+        self.banner = banner
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self):
+        import threading
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            threading.Thread(target=self._talk, args=(conn,), daemon=True).start()
+
+    def _talk(self, conn):
+        try:
+            conn.sendall(self.banner)
+            while conn.recv(4096):
+                pass
+        except OSError:
+            pass
+
+
+@pytest.mark.parametrize('banner', [b'', b'SSH-2.0-OpenSSH_9.6\r\n' * 3,
+                                    b'HTTP/1.0 400 Bad Request\r\n\r\n'])
+def test_a_server_that_is_not_dask_is_one_line_within_the_timeout(banner, capsys):
+    server = _NotDask(banner)
+    start = time.monotonic()
+    with pytest.raises(PoolError) as info:
+        pool_from(server.address, timeout=1.0)
+    assert server.address in str(info.value) and len(str(info.value).splitlines()) == 1
+    assert ('no Dask scheduler answered' in str(info.value) if not banner
+            else 'does not answer as a Dask scheduler' in str(info.value))
+    assert time.monotonic() - start < 1.0 + 2.0 + 5.0      # bounded: it hung for ever
+    server.sock.close()
+
+
+def test_a_scheduler_that_dies_mid_run_is_one_line(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    script = ('import distributed, sys, time\n'
+              'c = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,'
+              " dashboard_address=':0', protocol='tcp', host='127.0.0.1')\n"
+              'print(c.scheduler_address, flush=True)\n'
+              'time.sleep(600)\n')
+    cluster = subprocess.Popen([sys.executable, '-c', script], stdout=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    try:
+        address = cluster.stdout.readline().strip()
+        assert address.startswith('tcp://'), address
+        with DaskPool(address, timeout=2.0) as pool:
+            results = pool.map(time.sleep, [0.2] + [2.0] * 5)
+            assert next(results) is None
+            os.killpg(cluster.pid, signal.SIGKILL)
+            start = time.monotonic()
+            with pytest.raises(PoolError, match=f'lost the Dask scheduler at {address} mid-run'):
+                list(results)
+            assert time.monotonic() - start < 2.0 + 30.0
+    finally:
+        if cluster.poll() is None:
+            os.killpg(cluster.pid, signal.SIGKILL)
+        cluster.wait()
