@@ -9,8 +9,10 @@ forward along the body axis from the centre of mass, y up; points are complex x 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from saw_ros.core.kinematics import hinge_x
 from saw_ros.core.params import RobotParams
@@ -51,7 +53,7 @@ def outline(robot: RobotParams, gap: float) -> BodyOutline:
                        TAIL_HALF_HEIGHT))
 
 
-def link_plates(robot: RobotParams, centres, directions) -> np.ndarray:
+def link_plates(robot: RobotParams, centres: ArrayLike, directions: ArrayLike) -> np.ndarray:
     """
     Return each wave link as a plate from its down tip to its up tip: (..., n, 4) corners.
 
@@ -70,7 +72,8 @@ def dent_half_width(robot: RobotParams) -> float:
     return DENT_HALF_WIDTH * robot.link
 
 
-def dents(x: np.ndarray, depth: np.ndarray, half_width: float, samples: int = 9):
+def dents(x: ArrayLike, depth: ArrayLike, half_width: float,
+          samples: int = 9) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return each tip's dent in a surface as (abscissae, depths), two (tips, samples) arrays.
 

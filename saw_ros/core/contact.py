@@ -26,9 +26,10 @@ so that the 1 kHz loop allocates nothing large.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Union
+from typing import Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 Param = Union[float, np.ndarray]
 
@@ -47,7 +48,9 @@ class ContactLaw:
     mu: Param
 
     @classmethod
-    def from_values(cls, kn, kt, mu, exponent, restitution, hysteresis_speed, dt):
+    def from_values(cls, kn: Param, kt: Param, mu: Param, exponent: Param, restitution: Param,
+                    hysteresis_speed: Param, dt: float) -> 'ContactLaw':
+        """Fold the law's constants (scalars, or (S, P) arrays) for the 1 kHz loop."""
         mean, half = (1.0 + restitution) / 2.0, (1.0 - restitution) / 2.0
         rate = half / (hysteresis_speed * dt)
         return cls(kn * mean, kn * half, kn * rate, kt * mean, kt * half, kt * rate, exponent, mu)
@@ -72,15 +75,15 @@ class ContactState:
         self._d = np.zeros(shape)
 
     @property
-    def touching(self):
+    def touching(self) -> np.ndarray:
         return ~self.free
 
     @property
-    def slipping(self):
+    def slipping(self) -> np.ndarray:
         """Tips held at the Coulomb cap (computed on demand: the 1 kHz loop does not need it)."""
         return ~self.free & (np.abs(self.trial) > self.cap)
 
-    def reset(self):
+    def reset(self) -> None:
         for a in (self.anchor, self.depth, self.normal, self.tangential, self.trial, self.cap):
             a[:] = 0.0
         self.factor[:] = 0.0
@@ -89,19 +92,20 @@ class ContactState:
         self.free[:] = True
 
 
-def hysteresis_factor(rate, restitution, hysteresis_speed):
+def hysteresis_factor(rate: ArrayLike, restitution: Param, hysteresis_speed: Param) -> np.ndarray:
     """
-    Return the force factor for a deformation rate (m/s): 1 loading, e unloading, linear between.
+    Return the force factor for a deformation rate (m/s): 1 loading, e unloading.
 
-    -v0 and v0 (pure, for tests and plots).
+    Linear between -v0 and v0 (pure, for tests and plots).
     """
     return (1.0 + restitution) / 2.0 + (1.0 - restitution) / 2.0 * np.clip(
         np.asarray(rate, float) / hysteresis_speed, -1.0, 1.0)
 
 
-def _hysteresis(gain, now, before, stiffness_mean, stiffness_half_span, rate_gain):
+def _hysteresis(gain: np.ndarray, now: np.ndarray, before: np.ndarray, stiffness_mean: Param,
+                stiffness_half_span: Param, rate_gain: Param) -> None:
     """
-    Gain = k ((1 + e)/2 + (1 - e)/2 clip(rate / v0, -1, 1)) from the change of ``now``.
+    Set gain = k ((1 + e)/2 + (1 - e)/2 clip(rate / v0, -1, 1)) from the change of ``now``.
 
     With the constants folded: k (1 + e)/2, k (1 - e)/2 and k (1 - e)/2 / (v0 dt).
     """
@@ -112,7 +116,8 @@ def _hysteresis(gain, now, before, stiffness_mean, stiffness_half_span, rate_gai
     gain += stiffness_mean
 
 
-def contact_step(state: ContactState, penetration, x, law) -> tuple:
+def contact_step(state: ContactState, penetration: np.ndarray, x: np.ndarray,
+                 law: ContactLaw) -> Tuple[np.ndarray, np.ndarray]:
     """
     Advance the contact law one step for tips at ``penetration`` and abscissa ``x``.
 

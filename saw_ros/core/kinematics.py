@@ -18,9 +18,10 @@ wave cycle (``TipTable``) instead of solving the chain at every step.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import cast, Optional, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from saw_ros.core.params import ParameterError, RobotParams
 
@@ -53,14 +54,15 @@ def hinge_x(robot: RobotParams) -> float:
     return tail + robot.wave_length_along_body
 
 
-def backbone(robot: RobotParams, X, phase):
+def backbone(robot: RobotParams, X: Union[float, np.ndarray],
+             phase: Union[float, np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
     """Backbone height y and slope psi = dy/dX at body abscissa X."""
     k = 2.0 * np.pi / robot.wavelength
     arg = k * (hinge_x(robot) - X) + phase
     return robot.amplitude * np.cos(arg), robot.amplitude * k * np.sin(arg)
 
 
-def base_link_angle(robot: RobotParams, phase) -> np.ndarray:
+def base_link_angle(robot: RobotParams, phase: ArrayLike) -> np.ndarray:
     """Solve sin(theta) = (A / b0) cos(k b0 cos(theta) + phase) (paper's base link equation)."""
     phase = np.asarray(phase, dtype=float)
     A, b0 = robot.amplitude, robot.base_link_width
@@ -77,7 +79,7 @@ def base_link_angle(robot: RobotParams, phase) -> np.ndarray:
     return theta
 
 
-def link_geometry(robot: RobotParams, phase) -> LinkGeometry:
+def link_geometry(robot: RobotParams, phase: ArrayLike) -> LinkGeometry:
     """
     Positions of every link for the given phase(s).
 
@@ -110,7 +112,7 @@ def link_geometry(robot: RobotParams, phase) -> LinkGeometry:
                         down_tips=centres - r * normal)
 
 
-def tip_rates(robot: RobotParams, phase) -> np.ndarray:
+def tip_rates(robot: RobotParams, phase: ArrayLike) -> np.ndarray:
     """
     Return d(tip position) / d(phase) in the body frame, complex, (..., 2 n) as in ``TipTable``.
 
@@ -130,7 +132,7 @@ def tip_rates(robot: RobotParams, phase) -> np.ndarray:
     return np.concatenate([centre_rate + r * turn, centre_rate - r * turn], axis=-1)
 
 
-def base_link_end(robot: RobotParams, base_angle):
+def base_link_end(robot: RobotParams, base_angle: ArrayLike) -> np.ndarray:
     """Rear end of the base link (it meets the backbone there), from its angle."""
     return complex(hinge_x(robot), 0.0) - robot.base_link_width * np.exp(-1j * np.asarray(
         base_angle))
@@ -192,13 +194,13 @@ class PhaseTable:
         slopes = np.diff(self.points, axis=0)                                 # (samples, K)
         self.slopes = np.concatenate([slopes, slopes[:1]])
 
-    def index(self, phase):
-        """(row, weight) of phase(s) in [0, 2 pi)."""
+    def index(self, phase: ArrayLike) -> Tuple[np.ndarray, np.ndarray]:
+        """Return (row, weight) of phase(s) in [0, 2 pi)."""
         u = np.asarray(phase) * self.scale
         i = u.astype(np.intp)
         return i, u - i
 
-    def at(self, phase, out: Optional[np.ndarray] = None,
+    def at(self, phase: ArrayLike, out: Optional[np.ndarray] = None,
            work: Optional[np.ndarray] = None) -> np.ndarray:
         """
         Values at phase(s) in [0, 2 pi): shape phase.shape + (K,).
@@ -208,7 +210,7 @@ class PhaseTable:
         i, w = self.index(phase)
         w = w[..., None]
         if out is None:
-            return self.points[i] + w * self.slopes[i]
+            return cast(np.ndarray, self.points[i] + w * self.slopes[i])
         np.take(self.slopes, i, axis=0, out=out)
         out *= w
         out += np.take(self.points, i, axis=0, out=work)
@@ -232,7 +234,7 @@ class TipTable(PhaseTable):
 
     @property
     def count(self) -> int:
-        return self.points.shape[1]
+        return int(self.points.shape[1])
 
 
 class TipRateTable(PhaseTable):
@@ -259,7 +261,8 @@ class JointTable(PhaseTable):
         super().__init__(np.concatenate([geo.base_angle[:, None], geo.angles], axis=1), samples)
         self.derivative = self.slopes * self.scale      # d angle / d phase, per sample
 
-    def angles_and_rates(self, phase: float, omega: float = 0.0):
+    def angles_and_rates(self, phase: float,
+                         omega: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
         """
         Return ([base_angle, link_00, ...], their rates in rad/s) at ``phase``.
 

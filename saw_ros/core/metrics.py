@@ -19,17 +19,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Optional, Tuple
+from typing import Dict, List, Optional, Tuple, TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from saw_ros.core.kinematics import v_theory
+from saw_ros.core.params import RobotParams
+
+if TYPE_CHECKING:     # dynamics imports this module
+    from saw_ros.core.dynamics import Trajectory
 
 STEADY_CCI = 0.02   # the paper's first convergence threshold (2 %)
 TURN = 2.0 * math.pi
 
 
-def cci(t, v, frequency: float, scale: Optional[float] = None, turns=None):
+def cci(t: ArrayLike, v: ArrayLike, frequency: float, scale: Optional[float] = None,
+        turns: Optional[ArrayLike] = None) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return (times, CCI) for every sample with a full cycle after it.
 
@@ -61,27 +67,29 @@ def cci(t, v, frequency: float, scale: Optional[float] = None, turns=None):
     return t[usable], np.abs(later - v[usable]) / max(scale, 1e-12)
 
 
-def rms_scale(v, t, frequency: float) -> float:
+def rms_scale(v: ArrayLike, t: ArrayLike, frequency: float) -> float:
+    """Return the RMS of ``v`` over the last two cycles (the scale of a ripple around 0)."""
     t = np.asarray(t, float)
     tail = np.asarray(v, float)[t >= t[-1] - 2.0 / frequency]
     return float(np.sqrt(np.mean(tail ** 2)))
 
 
-def velocity_cci(t, q, frequency: float, turns=None):
+def velocity_cci(t: ArrayLike, q: np.ndarray, frequency: float,
+                 turns: Optional[ArrayLike] = None) -> Tuple[np.ndarray, Dict[str, np.ndarray]]:
     """
     Return (times, {'vx', 'vy', 'w': CCI}) of the velocities of q (n, 6) = x, y, theta, vx, vy, w.
 
     Vx scaled by its steady mean, vy and w by their steady RMS (module docstring).
     """
-    indices = {}
+    indices: Dict[str, np.ndarray] = {}
     for name, col in (('vx', 3), ('vy', 4), ('w', 5)):
         scale = None if col == 3 else rms_scale(q[:, col], t, frequency)
         tc, indices[name] = cci(t, q[:, col], frequency, scale, turns)
     return tc, indices
 
 
-def settling_time(t, index, threshold: float) -> Optional[float]:
-    """First time after which the index stays below ``threshold`` to the end (None: never)."""
+def settling_time(t: np.ndarray, index: ArrayLike, threshold: float) -> Optional[float]:
+    """Return the first time after which the index stays below ``threshold`` (None: never)."""
     index = np.asarray(index)
     if len(index) == 0:
         return None
@@ -94,13 +102,14 @@ def settling_time(t, index, threshold: float) -> Optional[float]:
     return float(t[last + 1])
 
 
-def steady_state_start(t, v, frequency: float, threshold: float = STEADY_CCI,
-                       min_cycles: float = 1.0, turns=None) -> Optional[float]:
+def steady_state_start(t: ArrayLike, v: ArrayLike, frequency: float, threshold: float = STEADY_CCI,
+                       min_cycles: float = 1.0,
+                       turns: Optional[ArrayLike] = None) -> Optional[float]:
     """
-    Start of steady state.
+    Return the start of steady state: the CCI of the forward velocity stays low from there on.
 
-    CCI of the forward velocity stays under ``threshold`` from there on, with at least
-    ``min_cycles`` cycles of evidence after it. None while not steady. ``turns``: as ``cci``.
+    Low is under ``threshold``, with at least ``min_cycles`` cycles of evidence after it. None
+    while not steady. ``turns``: as ``cci``.
     """
     tc, index = cci(t, v, frequency, turns=turns)
     start = settling_time(tc, index, threshold)
@@ -109,7 +118,8 @@ def steady_state_start(t, v, frequency: float, threshold: float = STEADY_CCI,
     return start
 
 
-def cycle_window(t, start: float, frequency: float, turns=None) -> Tuple[int, int]:
+def cycle_window(t: ArrayLike, start: float, frequency: float,
+                 turns: Optional[ArrayLike] = None) -> Tuple[int, int]:
     """
     Return the first and last sample (i0, i1) of the whole wave cycles from ``start``.
 
@@ -134,15 +144,15 @@ def cycle_window(t, start: float, frequency: float, turns=None) -> Tuple[int, in
     return i0, i1
 
 
-def mean_velocity(t, x, start: float, frequency: float) -> float:
-    """Mean velocity from ``start`` over a whole number of wave cycles (to cancel the ripple)."""
+def mean_velocity(t: ArrayLike, x: ArrayLike, start: float, frequency: float) -> float:
+    """Return the mean velocity from ``start`` over whole wave cycles (the ripple cancels)."""
     t = np.asarray(t, float)
     x = np.asarray(x, float)
     i0, i1 = cycle_window(t, start, frequency)
     return float((x[i1] - x[i0]) / (t[i1] - t[i0]))
 
 
-def helix_turns(t, omega):
+def helix_turns(t: ArrayLike, omega: ArrayLike) -> np.ndarray:
     """
     Return the helix angle (rad, unwrapped, 0 at the first sample) from its speed (rad/s).
 
@@ -154,8 +164,8 @@ def helix_turns(t, omega):
     return np.concatenate([[0.0], np.cumsum(omega[1:] * np.diff(t))])
 
 
-def helix_frequency(t, turns, i0: int, i1: int) -> float:
-    """Mean helix frequency (Hz) between samples i0 and i1 of the helix angle ``turns``."""
+def helix_frequency(t: np.ndarray, turns: np.ndarray, i0: int, i1: int) -> float:
+    """Return the mean helix frequency (Hz) between samples i0 and i1 of helix angle ``turns``."""
     return float((turns[i1] - turns[i0]) / (TURN * (t[i1] - t[i0])))
 
 
@@ -172,10 +182,10 @@ class RunMetrics:
     cci_02pct_after: Optional[float]    # s, every velocity's CCI under 0.2 %
 
 
-def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0,
-            omega=None) -> RunMetrics:
+def analyse(t: ArrayLike, q: ArrayLike, robot: RobotParams, frequency: float,
+            min_cycles: float = 1.0, omega: Optional[ArrayLike] = None) -> RunMetrics:
     """
-    Metrics of one recorded run: t (n,), q (n, 6) = x, y, theta, vx, vy, w.
+    Return the metrics of one recorded run: t (n,), q (n, 6) = x, y, theta, vx, vy, w.
 
     The mean velocity is taken from the steady-state start (or from the middle of the run if it
     never settled, flagged by steady_from = None) to the end over whole cycles.
@@ -204,15 +214,16 @@ def analyse(t, q, robot, frequency: float, min_cycles: float = 1.0,
         frequency = helix_frequency(t, turns, i0, i1)
     vth = v_theory(robot, frequency)
     tc, indices = velocity_cci(t, q, frequency, turns)
-    settled = {}
+    settled: Dict[float, Optional[float]] = {}
     for threshold in (0.02, 0.002):
         times = [settling_time(tc, index, threshold) for index in indices.values()]
-        settled[threshold] = None if None in times else max(times)
+        known: List[float] = [x for x in times if x is not None]
+        settled[threshold] = max(known) if len(known) == len(times) else None
     ar = v / vth if vth > 0 else float('nan')
     return RunMetrics(frequency, vth, v, ar, start, settled[0.02], settled[0.002])
 
 
-def run_frequency(trajectory, i: int = 0) -> float:
+def run_frequency(trajectory: 'Trajectory', i: int = 0) -> float:
     """
     Return the helix frequency (Hz) scenario ``i`` of a ``Trajectory`` ran at.
 
@@ -226,14 +237,16 @@ def run_frequency(trajectory, i: int = 0) -> float:
     return helix_frequency(trajectory.t, run_turns(trajectory, i), n // 2 - 1, n - 1)
 
 
-def run_turns(trajectory, i: int = 0):
+def run_turns(trajectory: 'Trajectory', i: int = 0) -> np.ndarray:
     """Return the helix angle (rad, unwrapped, 0 at start) of scenario ``i`` per sample."""
+    if trajectory.omega is None:
+        raise ValueError('the trajectory holds no helix speed (omega): simulate() records it')
     return helix_turns(trajectory.t, trajectory.omega[:, i])
 
 
-def analyse_run(trajectory, i: int = 0, min_cycles: float = 1.0) -> RunMetrics:
+def analyse_run(trajectory: 'Trajectory', i: int = 0, min_cycles: float = 1.0) -> RunMetrics:
     """Return the metrics of scenario ``i`` of a ``Trajectory``, against its helix's speed."""
     scenario = trajectory.scenarios[i]
-    motor = scenario.motor.voltage > 0.0 and trajectory.omega is not None
+    omega = trajectory.omega if scenario.motor.voltage > 0.0 else None
     return analyse(trajectory.t, trajectory.q[:, i], scenario.robot, scenario.frequency,
-                   min_cycles, trajectory.omega[:, i] if motor else None)
+                   min_cycles, omega[:, i] if omega is not None else None)

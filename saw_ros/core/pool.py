@@ -19,7 +19,7 @@ bit of some results (about 1e-14 relative). Cutting into the same batches gives 
 """
 from __future__ import annotations
 
-from typing import Callable, Iterable, Iterator, List, Protocol, Sequence
+from typing import Any, Callable, Iterable, Iterator, List, Protocol, Sequence
 
 import numpy as np
 
@@ -33,7 +33,8 @@ class Pool(Protocol):
     workers: int
 
     # Named as Executor.map and Client.map are, which every reader of a pool expects.
-    def map(self, function: Callable, jobs: Iterable) -> Iterator:  # noqa: A003
+    def map(self, function: Callable[[Any], Any],  # noqa: A003
+            jobs: Iterable[Any]) -> Iterator[Any]:
         """Yield ``function(job)`` for every job, in order."""
 
     def close(self) -> None:
@@ -44,7 +45,8 @@ class PoolError(RuntimeError):
     """A pool cannot run the jobs (scheduler unreachable, a worker without saw_ros): one line."""
 
 
-def batches(items: Sequence, parts: int, smallest: int = SMALLEST_BATCH) -> List[list]:
+def batches(items: Sequence[Any], parts: int,
+            smallest: int = SMALLEST_BATCH) -> List[List[Any]]:
     """
     Cut ``items`` into at most ``parts`` contiguous batches of near-equal size, in order.
 
@@ -71,7 +73,8 @@ class LocalPool:
         return f'LocalPool(workers={self.workers})'
 
     # Named as Executor.map and Client.map are, which every reader of a pool expects.
-    def map(self, function: Callable, jobs: Iterable) -> Iterator:  # noqa: A003
+    def map(self, function: Callable[[Any], Any],  # noqa: A003
+            jobs: Iterable[Any]) -> Iterator[Any]:
         """Yield ``function(job)`` for every job, in order."""
         jobs = list(jobs)
         processes = min(self.workers, len(jobs))
@@ -86,8 +89,8 @@ class LocalPool:
     def close(self) -> None:
         """Nothing to release: each ``map`` ends its own processes."""
 
-    def __enter__(self):
+    def __enter__(self) -> 'LocalPool':
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

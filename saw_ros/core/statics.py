@@ -15,8 +15,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import Optional, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -32,7 +34,8 @@ class StaticCase:
 FIGURE4_CASES = (StaticCase('A', 0.0, 0.4), StaticCase('B', 0.5, 0.4), StaticCase('C', 0.5, 0.8))
 
 
-def minimal_normal_forces(slope, external_force, mu, weight=1.0):
+def minimal_normal_forces(slope: ArrayLike, external_force: float, mu: float,
+                          weight: float = 1.0) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     Minimal bottom, top and total normal forces (Eqs. 4, 5, 3) at slope(s) in rad.
 
@@ -48,7 +51,8 @@ def minimal_normal_forces(slope, external_force, mu, weight=1.0):
     return bottom, top, bottom + top
 
 
-def top_surface_needed_above(external_force, mu, weight=1.0):
+def top_surface_needed_above(external_force: float, mu: float,
+                             weight: float = 1.0) -> Optional[float]:
     """
     Smallest slope (rad) from which the top surface must press (Eq. 5 > 0); 0 if always.
 

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Optional
+from typing import Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -53,8 +53,9 @@ PAPER_WORM_AR_LEVEL = 0.40
 PAPER_WORM_AR_VERTICAL = 0.29
 
 
-def _calibrate(cells=4, stroke=0.07, weight=RobotParams.mass * GRAVITY):
-    """(mu F_m in N, k in N/m) giving the paper's two worm ARs: AR = 1 - N P / ((N - 1) k s)."""
+def _calibrate(cells: int = 4, stroke: float = 0.07,
+               weight: float = RobotParams.mass * GRAVITY) -> Tuple[float, float]:
+    """Return (mu F_m in N, k in N/m) giving the paper's worm ARs: AR = 1 - N P / ((N - 1) k s)."""
     c = (cells - 1) * stroke / cells
     load_over_k_level = (1.0 - PAPER_WORM_AR_LEVEL) * c          # P0 / k
     load_over_k_vertical = (1.0 - PAPER_WORM_AR_VERTICAL) * c    # (P0 + m g) / k
@@ -76,7 +77,7 @@ class WormParams:
     anchor_normal_force: Optional[float] = None    # N, F_a; None: from the gap and surface law
     height: float = 0.057                # m, an expanded cell as tall as the wave robot
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.cells < 2:
             raise ParameterError(f'worm cells = {self.cells} is invalid: at least 2')
         for name in ('stroke', 'mass', 'height'):
@@ -99,7 +100,7 @@ def anchor_normal_force(worm: WormParams, scenario: Scenario) -> float:
     s = scenario.surface
     squeeze = max(0.0, (worm.height - scenario.conditions.gap) / 2.0)
     share = worm.mass * GRAVITY * math.cos(scenario.conditions.slope) / worm.cells
-    return 2.0 * s.normal_stiffness * squeeze ** s.hertz_exponent + max(share, 0.0)
+    return 2.0 * s.normal_stiffness * float(squeeze ** s.hertz_exponent) + max(share, 0.0)
 
 
 @dataclass
@@ -135,7 +136,8 @@ def zero_advance_stiffness(scenario: Scenario, worm: WormParams = WormParams()) 
     return worm.cells * _load(worm, scenario) / ((worm.cells - 1) * worm.stroke)
 
 
-def _equilibrium(b, k, cap, demand):
+def _equilibrium(b: np.ndarray, k: np.ndarray, cap: np.ndarray,
+                 demand: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return the body position X (per row) where sum_j clip(-k (X - b_j), -cap_j, cap_j) = demand.
 
@@ -154,8 +156,8 @@ def _equilibrium(b, k, cap, demand):
     return 0.5 * (lo + hi), ok
 
 
-def contact_law(scenarios, worm: WormParams = WormParams(), cycles: int = 3,
-                increments: int = 10) -> list:
+def contact_law(scenarios: Union[Scenario, Iterable[Scenario]], worm: WormParams = WormParams(),
+                cycles: int = 3, increments: int = 10) -> List[WormResult]:
     """
     Return the worm's cells meeting the wave's contact law quasi-statically, per scenario.
 
@@ -176,12 +178,12 @@ def contact_law(scenarios, worm: WormParams = WormParams(), cycles: int = 3,
     anchor = c.copy()                                  # body at X = 0, springs unstretched
     X = np.zeros(S)
     slipped = np.zeros(S, bool)
-    start_of_cycle = []
+    start_of_cycle: List[np.ndarray] = []
     normal = np.repeat(f_a, n, axis=1)
 
     anchors_slid = np.zeros(S, bool)
 
-    def settle(moving=None):
+    def settle(moving: Optional[int] = None) -> np.ndarray:
         nonlocal X
         cap = mu * normal
         X, ok = _equilibrium(anchor - c, k, cap, demand)
@@ -210,7 +212,7 @@ def contact_law(scenarios, worm: WormParams = WormParams(), cycles: int = 3,
     start_of_cycle.append(X.copy())
     advance = start_of_cycle[-1] - start_of_cycle[-2]
     load = np.array([_load(worm, sc) for sc in scenarios])
-    out = []
+    out: List[WormResult] = []
     for j in range(S):
         if slipped[j]:                   # no equilibrium: the robot slides away
             out.append(WormResult(0.0, float('nan'), True, float(load[j])))

@@ -75,5 +75,7 @@ def scenario_from_parameters(values: Dict[str, Any], base: Optional[Scenario] = 
     return base.with_values({k: v for k, v in values.items() if k in known})
 
 
-def load_scenario(path: Path, node: str = 'simulator', base: Optional[Scenario] = None):
+def load_scenario(path: Path, node: str = 'simulator',
+                  base: Optional[Scenario] = None) -> Scenario:
+    """Return the Scenario of ``node``'s parameters in the parameter file ``path``."""
     return scenario_from_parameters(load_parameters(path, node), base)

@@ -13,9 +13,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import List, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from saw_ros.core import body
 from saw_ros.core.kinematics import base_link_end, link_geometry
@@ -23,6 +24,7 @@ from saw_ros.core.params import RobotParams
 
 Point = Tuple[float, float, float]
 Colour = Tuple[float, float, float, float]
+Numbers = Union[Sequence[float], np.ndarray]      # one value per tip
 
 SURFACE_COLOUR: Colour = (0.55, 0.55, 0.6, 1.0)
 SQUEEZE_COLOUR: Colour = (0.95, 0.55, 0.2, 0.8)     # the squeezed band of a surface
@@ -76,7 +78,8 @@ def surfaces(gap: float, centre_x: float) -> List[Shape]:
             for i, y in enumerate((0.0, gap))]
 
 
-def _to_surface(points, x: float, y: float, theta: float) -> np.ndarray:
+def _to_surface(points: Union[np.ndarray, Sequence[Any]], x: float, y: float,
+                theta: float) -> np.ndarray:
     """Return body-frame points (complex) in the surface frame (complex)."""
     return complex(x, y) + complex(math.cos(theta), math.sin(theta)) * np.asarray(points)
 
@@ -85,7 +88,7 @@ def _xyz(p: complex) -> Point:
     return (float(p.real), float(p.imag), 0.0)
 
 
-def _points(xy, z: float = 0.0) -> np.ndarray:
+def _points(xy: ArrayLike, z: float = 0.0) -> np.ndarray:
     """Return complex x + i y as an (N, 3) array of x, y, z."""
     xy = np.asarray(xy).ravel()
     out = np.empty((len(xy), 3))
@@ -93,8 +96,8 @@ def _points(xy, z: float = 0.0) -> np.ndarray:
     return out
 
 
-def _cube(namespace: str, id_: int, colour: Colour, corners, x: float, y: float, theta: float,
-          depth: float = DEPTH) -> Shape:
+def _cube(namespace: str, id_: int, colour: Colour, corners: ArrayLike, x: float, y: float,
+          theta: float, depth: float = DEPTH) -> Shape:
     """Return a body-frame rectangle (4 complex corners, axis-aligned) as a cube at the pose."""
     corners = np.asarray(corners)
     centre = _to_surface([corners.mean()], x, y, theta)[0]
@@ -141,7 +144,7 @@ def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: floa
     return shapes
 
 
-def squeezed(robot_params: RobotParams, gap: float, contacts) -> List[Shape]:
+def squeezed(robot_params: RobotParams, gap: float, contacts: np.ndarray) -> List[Shape]:
     """
     Return the surfaces' squeezed bands: where each touching tip presses in, its dent.
 
@@ -168,9 +171,8 @@ def squeezed(robot_params: RobotParams, gap: float, contacts) -> List[Shape]:
     return shapes
 
 
-def force_arrows(x: Sequence[float], y: Sequence[float], normal: Sequence[float],
-                 tangential: Sequence[float], surface: Sequence[int],
-                 slipping: Sequence[int], scale: float = FORCE_SCALE) -> List[Shape]:
+def force_arrows(x: Numbers, y: Numbers, normal: Numbers, tangential: Numbers, surface: Numbers,
+                 slipping: Numbers, scale: float = FORCE_SCALE) -> List[Shape]:
     """
     Return one arrow per touching tip: the contact force on the tip, ``scale`` m per N.
 
@@ -214,7 +216,8 @@ def tracking(front: Optional[Point], back: Optional[Point],
 
 
 def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float],
-          phase: Optional[float], contacts=None, force_scale: float = FORCE_SCALE) -> List[Shape]:
+          phase: Optional[float], contacts: Optional[np.ndarray] = None,
+          force_scale: float = FORCE_SCALE) -> List[Shape]:
     """
     Return every shape of the ground truth at one instant (what /saw/markers draws).
 
