@@ -230,3 +230,32 @@ def test_the_benchmark_table_lists_every_bench_key():
     listed = set(re.findall(r'`([a-z_]+)`', table))
     missing = [k for _, module in modules() for k in module.KEYS if k not in listed]
     assert not missing, f'bench keys missing from the README: {missing}'
+
+
+def test_the_model_pages_numbers_follow_from_the_code():
+    from saw_ros.core import Scenario, v_theory, worm
+    s = Scenario()
+    model = ' '.join((ROOT / 'docs' / 'model.md').read_text().split())
+    worm_page = ' '.join((ROOT / 'docs' / 'worm-model.md').read_text().split())
+    kn, p = s.surface.normal_stiffness, s.surface.hertz_exponent
+    squeeze = (s.robot.height - s.conditions.gap) / 2
+    expected = {
+        model: [f'{100 * v_theory(s.robot, 1.0):.2f} cm per helix turn',
+                f'{s.robot.height * 1000:.0f} mm tall robot squeezed {squeeze * 1000:.0f} mm',
+                f'1200 taken as such gives {1200 * 0.006 ** p:.2f} N per tip at 6 mm',
+                f'{kn:.0f}'[:-3] + ' ' + f'{kn:.0f}'[-3:] + f' N/m^1.5 gives the measured 1200 N/m'
+                f' x 6 mm = {kn * 0.006 ** p:.1f} N',
+                f'm length^2 / 12 = {s.robot.inertia:.1e} kg m^2'.replace('e-03', 'e-3'),
+                f'L / 9 = {s.robot.link * 1000:.1f} mm'],
+        worm_page: [f'mu F_m | {worm.CALIBRATED_MOVING_FRICTION:.2f} N',
+                    f'k_t of Figure 21 | {worm.FIGURE21_STIFFNESS:.0f} N/m',
+                    f'{worm.zero_advance_stiffness(s):.0f} N/m on the level',
+                    f'about {worm.anchor_normal_force(worm.WormParams(), s):.0f} N at the '
+                    'defaults',
+                    'this worm gives {:.2f} / {:.2f}'.format(
+                        worm.closed_form(s).advance_ratio,
+                        worm.closed_form(s.with_values({'conditions.slope': math.pi / 2}))
+                        .advance_ratio)],
+    }
+    missing = [q for text, quotes in expected.items() for q in quotes if q not in text]
+    assert not missing, f'docs/model.md or docs/worm-model.md do not say: {missing}'
