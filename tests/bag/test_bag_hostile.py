@@ -6,6 +6,7 @@ a gigabyte of zeros after a valid header, and a copy cut short whose metadata.ya
 the counts.
 """
 import os
+from pathlib import Path
 import shutil
 
 from mcap_ros2._dynamic import serialize_dynamic
@@ -193,3 +194,34 @@ def test_killed_recording_says_where_the_readable_part_ends(bag, capsys):
     text = reader.shortfall()
     assert f'whatever came after log time {stamp(last)} is lost' in text
     assert 'no metadata.yaml' in text
+
+
+REFERENCE_CAMERA = Path(__file__).resolve().parents[2] / 'bags' / 'reference_camera'
+
+
+def test_track_warns_on_a_killed_recording_and_refuses_hostile_metadata(tmp_path, capsys):
+    directory = tmp_path / 'camera'
+    shutil.copytree(REFERENCE_CAMERA, directory)
+    os.remove(directory / 'metadata.yaml')                # as after kill -9
+    path = next(directory.glob('*.mcap'))
+    with open(path, 'r+b') as f:
+        f.truncate(os.path.getsize(path) // 2)
+    code = main(['track', str(directory), '--px-per-m', '1200', '--quiet'])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert 'saw-ros track: warning:' in err and 'is unfinished' in err and 'Traceback' not in err
+    set_metadata(directory, '[1, 2')
+    code = main(['track', str(directory), '--px-per-m', '1200', '--quiet'])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and 'not YAML' in err, err
+
+
+@pytest.mark.ros
+def test_player_refuses_hostile_metadata_in_one_line(bag, outside, tmp_path):
+    from saw_ros.graph.process import ManagedProcess, node_command
+    metadata_with(bag, relative_file_paths=['../elsewhere/secret.mcap'])
+    player = ManagedProcess('player', node_command('player', params={'bag': str(bag)}),
+                            os.environ, tmp_path / 'logs')
+    assert player.wait(60) == 1
+    out = player.output()
+    assert 'leads outside the bag directory' in out and 'Traceback' not in out, out

@@ -134,12 +134,18 @@ def _source(path, fps: float):
     """Return the frames to track: a recording's camera stream, or the video file."""
     from saw_ros.analysis.bag_frames import BagFrames
     p = Path(path)
-    if p.suffix == '.mcap' or (p.is_dir() and (p / 'metadata.yaml').exists()):
+    # A killed recorder's bag has no metadata.yaml yet: its .mcap files make it a bag too.
+    if p.suffix == '.mcap' or (p.is_dir() and ((p / 'metadata.yaml').exists()
+                                               or any(p.glob('*.mcap')))):
         from saw_ros.bag.reader import BagReadError
         try:
-            return BagFrames(p)
+            source = BagFrames(p)
         except BagReadError as exc:
             raise UserError(str(exc)) from None
+        missing = source.reader.shortfall()
+        if missing:           # tracked all the same: say that the end of the run is not there
+            print(f'saw-ros track: warning: {missing}', file=sys.stderr)
+        return source
     return video_input(path, 'VIDEO', fps)
 
 
