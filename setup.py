@@ -14,6 +14,11 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/msg_config', glob('msg_config/*')),
+        # Where `ros2 pkg prefix saw_ros` users look (docs/ros.md): the launch file, the URDF
+        # and the viewers' layouts. scripts/bootstrap.sh mirrors this in the venv.
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/urdf', ['urdf/saw.urdf']),
+        ('share/' + package_name + '/viewers', ['docs/saw_ros.rviz', 'docs/foxglove_layout.json']),
     ],
     install_requires=['setuptools'],
     # colcon test runs pytest only for a package that declares it as a test requirement

@@ -48,6 +48,11 @@ if [ "$(cat "$VENV/.saw_ros_stamp" 2>/dev/null)" != "$(stamp_of)" ]; then
   cp "$ROOT/resource/saw_ros" "$VENV/share/ament_index/resource_index/packages/saw_ros"
   cp "$ROOT/package.xml" "$VENV/share/saw_ros/package.xml"
   ln -sfn "$ROOT/msg_config" "$VENV/share/saw_ros/msg_config"
+  # ...and setup.py's other data_files, the same layout as a colcon install.
+  ln -sfn "$ROOT/launch" "$VENV/share/saw_ros/launch"
+  ln -sfn "$ROOT/urdf" "$VENV/share/saw_ros/urdf"
+  mkdir -p "$VENV/share/saw_ros/viewers"
+  ln -sf "$ROOT/docs/saw_ros.rviz" "$ROOT/docs/foxglove_layout.json" "$VENV/share/saw_ros/viewers/"
   stamp_of > "$VENV/.saw_ros_stamp"
 fi
 

@@ -57,6 +57,41 @@ RECORDED_TOPICS = topics.recorded_topics()
 ALL_TOPICS = [t.name for t in topics.TOPICS]
 
 
+def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
+                    scenario: Optional[Dict[str, object]] = None, record: bool = True,
+                    camera: Optional[Dict[str, object]] = None,
+                    report_path: Optional[Path] = None,
+                    reference_file: Optional[Path] = None) -> Dict[str, Dict[str, object]]:
+    """
+    Return the main job's nodes in start order, each with its ROS parameters.
+
+    Simulator, comparison, vision and camera start together; the recorder (not listed: its
+    ``output`` and ``topics`` are the caller's) starts once READY_NODES said ready. One table for
+    ``run_pipeline`` and launch/saw.launch.py.
+    """
+    scenario = dict(scenario or {})
+    # The level camera sees the surfaces at the run's slope; the tracker must know it too.
+    slope = float(scenario.get('conditions.slope', 0.0))
+    return {
+        # Every topic needs a subscriber before the first step: the recorder's, or with no
+        # recorder the camera's and comparison's (then only /saw/pose and /saw/joint_states).
+        'simulator': dict(duration=float(duration), real_time_factor=float(real_time_factor),
+                          wait_for_subscribers=1 if record else 0, **scenario),
+        # An empty value ('-p reference_file:=') is a parse error for rcl: leave it out.
+        'comparison': dict(exit_when_done=True, idle_timeout=2.0,
+                           **({'report_path': str(report_path)} if report_path else {}),
+                           **({'reference_file': str(reference_file)} if reference_file
+                              else {})),
+        # The tracker reads the JPEG stream the recorder keeps: the camera then publishes no raw
+        # frames at all (12 ms each; decoding costs the tracker less, and JPEG quality 90 tracks
+        # within the raw tolerances: tests/ros/test_vision_nodes.py).
+        # Neither runs on use_sim_time: their outputs carry the frames' stamps anyway, and a
+        # use_sim_time node takes every /clock tick in Python (1000 callbacks a second each).
+        'vision': {'slope': slope, 'image_transport': 'compressed'},
+        'camera': dict(slope=slope, **dict(camera or {})),
+    }
+
+
 def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float = 1.0,
                  scenario: Optional[Dict[str, object]] = None, record: bool = True,
                  bag_dir: Optional[Path] = None, camera: Optional[Dict[str, object]] = None,
@@ -71,13 +106,13 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     logs = out_dir / 'logs'
     out_dir.mkdir(parents=True, exist_ok=True)
     env = isolated_ros_env()
-    scenario = dict(scenario or {})
     report_path = out_dir / 'comparison.json'
     if report_path.exists():
         report_path.unlink()
     # No video file from the camera: the recording holds the frames (compressed), and encoding
     # an mp4 beside the JPEGs cost the live graph real time (saw-ros bag video makes it after).
-    camera_params = dict(camera or {})
+    node_params = node_parameters(duration, real_time_factor, scenario, record, camera,
+                                  report_path, reference_file)
     nodes: List[ManagedProcess] = []
     codes: Dict[str, int] = {}
     start = time.monotonic()
@@ -104,24 +139,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             probe_command = node_command('ready', package='saw_ros.ros') + [
                 '--nodes', ','.join(READY_NODES), '--timeout', f'{3 * MATCH_TIMEOUT:g}']
             probe = ManagedProcess('ready', probe_command, env, logs)
-        # Every topic needs a subscriber before the first step: the recorder's, or with no
-        # recorder the camera's and comparison's (then only /saw/pose and /saw/joint_states).
-        simulator = launch('simulator', duration=float(duration),
-                           real_time_factor=float(real_time_factor),
-                           wait_for_subscribers=1 if record else 0, **scenario)
-        # An empty value ('-p reference_file:=') is a parse error for rcl: leave it out.
-        comparison = launch('comparison', report_path=str(report_path), exit_when_done=True,
-                            idle_timeout=2.0,
-                            **({'reference_file': str(reference_file)} if reference_file else {}))
-        # The level camera sees the surfaces at the run's slope; the tracker must know it too.
-        slope = float(scenario.get('conditions.slope', 0.0))
-        # The tracker reads the JPEG stream the recorder keeps: the camera then publishes no raw
-        # frames at all (12 ms each; decoding costs the tracker less, and JPEG quality 90 tracks
-        # within the raw tolerances: tests/ros/test_vision_nodes.py).
-        # Neither runs on use_sim_time: their outputs carry the frames' stamps anyway, and a
-        # use_sim_time node takes every /clock tick in Python (1000 callbacks a second each).
-        launch('vision', slope=slope, image_transport='compressed')
-        launch('camera', slope=slope, **camera_params)
+        started = {name: launch(name, **values) for name, values in node_params.items()}
+        simulator, comparison = started['simulator'], started['comparison']
         if record:
             # With a recorder the simulator starts stepping once the recorder has matched its
             # topics (/saw/twist & co. have no other subscriber). So the recorder comes last:

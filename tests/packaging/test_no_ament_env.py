@@ -138,12 +138,15 @@ def test_config_files_found_by_the_installed_package_without_ament_prefix_path(t
     module, config, topics = out.stdout.splitlines()[-3:]
     assert Path(config).is_file()
     assert "'/clock'" in topics
-    package_root = Path(module).parents[1]  # source tree, or .../site-packages of an install
+    # Compared resolved: under colcon --symlink-install the package is imported through the
+    # build folder's symlinks while config_path resolves its own location to the source tree.
+    package_root = Path(module).resolve().parents[1]  # source tree, or an install's site-packages
+    config = Path(config).resolve()
     if (package_root / 'msg_config').is_dir():
-        assert Path(config).parent == package_root / 'msg_config'
+        assert config.parent == (package_root / 'msg_config').resolve()
     else:  # an install: <prefix>/share/saw_ros/msg_config of the same prefix
-        assert Path(config).parent.parent.name == 'saw_ros'
-        assert package_root.is_relative_to(Path(config).parents[3])
+        assert config.parent.parent.name == 'saw_ros'
+        assert package_root.is_relative_to(config.parents[3])
 
 
 @pytest.mark.ros

@@ -131,6 +131,20 @@ def test_installed_share_has_package_xml_and_every_config_file():
 
 
 @needs_install
+def test_installed_share_has_the_launch_file_urdf_and_viewer_layouts():
+    """setup.py's data_files (colcon) and scripts/bootstrap.sh's venv: the same share layout."""
+    share = PREFIX / 'share' / 'saw_ros'
+    for dest, files in setup_arguments()['data_files']:
+        for name in files:
+            installed = PREFIX / dest / Path(name).name
+            assert installed.is_file(), f'{installed} missing'
+            assert installed.read_bytes() == (ROOT / name).read_bytes(), installed
+    for name in ('launch/saw.launch.py', 'urdf/saw.urdf', 'viewers/saw_ros.rviz',
+                 'viewers/foxglove_layout.json'):
+        assert (share / name).is_file(), f'{share / name} missing'
+
+
+@needs_install
 def test_ament_index_finds_the_installed_package():
     """
     Check that the install is an ament prefix of saw_ros (what `ros2 run` needs).

@@ -340,8 +340,9 @@ OWN_PARAMETERS = (
     ('duration', 0.0, spec_meta('s', 'simulated time, then the node exits with code 0; 0 = run '
                                      'until stopped', 0.0, None)),
     ('markers_rate', markers.RATE, spec_meta(
-        'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers per simulated second '
-        '(at most one per step); 0 = none', 0.0, None, read_only=True)),
+        'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers, and surface -> '
+        'base_link on /tf, per simulated second (at most one per step); 0 = none', 0.0, None,
+        read_only=True)),
     ('wait_for_subscribers', 0, spec_meta('', 'before the first step, wait until every topic has '
                                               'at least this many subscribers (tests, benchmarks, '
                                               'recordings that must see every step); 0 = start '
