@@ -19,6 +19,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from saw_ros.analysis.compare import find_reference, load_reference, reference_error, RunComparator
+from saw_ros.analysis.shown import shown
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.metrics import run_turns, TURN
 from saw_ros.core.pool import LocalPool, Pool
@@ -46,6 +47,8 @@ class ConditionResult:
     frames_ok: int
     reference_speed: float = float('nan')       # measured (paper), m/s
     reference_error: float = float('nan')       # |AR_sim - AR_measured| / AR_measured
+    # Why a speed, AR or error above is missing (nan), and what to do: a report prints this.
+    note: str = ''
 
 
 def duration_for(frequency: float) -> float:
@@ -117,7 +120,7 @@ def run_campaign(slopes_deg: Sequence[float] = PAPER_SLOPES_DEG,
         r = comp.result()
         result = ConditionResult(slope, volts, r.frequency, r.v_theory, r.v_sim, r.v_tracked,
                                  r.ar_sim, r.ar_tracked, r.relative_error, r.steady_from,
-                                 len(times), ok)
+                                 len(times), ok, note=missing_note(r, duration, s))
         point = find_reference(reference, slope, volts)
         if point is not None and r.steady:
             result.reference_speed = point.speed if point.speed is not None else float('nan')
@@ -137,24 +140,50 @@ def linear_fit(x, y) -> Tuple[float, float, float]:
         total > 0 else 1.0
 
 
+def missing_note(comparison, simulated_s: float, scenario: Scenario) -> str:
+    """Return why a condition has no comparison and what to do, in words ('' if it has one)."""
+    why = comparison.why_not(simulated_s)
+    if not why:
+        return ''
+    drive = (f'--voltage {scenario.motor.voltage:g}' if scenario.motor.voltage > 0 else
+             f'--frequency {scenario.conditions.frequency:g}')
+    return (f'{why}; see whether it settles in a longer run: saw-ros simulate --slope-deg '
+            f'{math.degrees(scenario.conditions.slope):g} {drive} --duration '
+            f'{4 * simulated_s:g} --plot run.png')
+
+
+def _mean(values) -> float:
+    """Return the mean of the finite values; nan when there is none (the report says why)."""
+    values = [v for v in values if math.isfinite(v)]
+    return float(np.mean(values)) if values else float('nan')
+
+
 def summarise(results: List[ConditionResult]) -> Dict[str, object]:
+    """
+    Return the means, fits and counts of a campaign.
+
+    Means are over the rows that have an error (``compared`` of them); a row without one says
+    why in its ``note``.
+    """
     by_voltage = {}
     for v in sorted({r.voltage for r in results}):
         rows = [r for r in results if r.voltage == v]
-        by_voltage[v] = float(np.mean([r.relative_error for r in rows]))
+        by_voltage[v] = _mean([r.relative_error for r in rows])
     fits_slope = {}
     for v in sorted({r.voltage for r in results}):
-        rows = [r for r in results if r.voltage == v]
+        rows = [r for r in results if r.voltage == v and math.isfinite(r.v_tracked)]
         if len(rows) >= 2:
             fits_slope[v] = linear_fit([r.slope_deg for r in rows], [r.v_tracked for r in rows])
     fits_voltage = {}
     for s in sorted({r.slope_deg for r in results}):
-        rows = [r for r in results if r.slope_deg == s]
+        rows = [r for r in results if r.slope_deg == s and math.isfinite(r.v_tracked)]
         if len(rows) >= 2:
             fits_voltage[s] = linear_fit([r.voltage for r in rows], [r.v_tracked for r in rows])
     refs = [r.reference_error for r in results if math.isfinite(r.reference_error)]
     return {'mean_relative_error_by_voltage': by_voltage,
-            'mean_relative_error': float(np.mean([r.relative_error for r in results])),
+            'mean_relative_error': _mean([r.relative_error for r in results]),
+            'rows': len(results),
+            'compared': sum(1 for r in results if math.isfinite(r.relative_error)),
             'speed_vs_slope_fits': fits_slope, 'speed_vs_voltage_fits': fits_voltage,
             'reference_points': len(refs),
             'mean_reference_error': float(np.mean(refs)) if refs else float('nan')}
@@ -179,6 +208,21 @@ def write_outputs(results: List[ConditionResult], out: Path,
     return paths
 
 
+def _cell(value, spec: str, scale: float = 1.0) -> str:
+    """Return a table cell: the number, or a dash for one the notes below the table explain."""
+    return shown(value, spec, why='-', scale=scale)
+
+
+def notes_markdown(results: List[ConditionResult]) -> List[str]:
+    """Return the lines that say why a row has no number (none when every row has them)."""
+    noted = [r for r in results if r.note]
+    if not noted:
+        return []
+    lines = ['', f'{len(noted)} of {len(results)} rows have no comparison (a dash above); the '
+             'means are over the others:', '']
+    return lines + [f'- {r.slope_deg:g} deg, {r.voltage:g} V: {r.note}' for r in noted]
+
+
 def markdown(results: List[ConditionResult], summary: Dict[str, object]) -> str:
     lines = ['# Validation campaign: simulation against tracking (paper Section 6)', '',
              'Every condition ran through the physics core, the virtual 60 fps camera and the '
@@ -191,17 +235,20 @@ def markdown(results: List[ConditionResult], summary: Dict[str, object]) -> str:
         measured = f'{100 * r.reference_speed:.2f}' if math.isfinite(r.reference_speed) else ''
         ref = f'{100 * r.reference_error:.1f}' if math.isfinite(r.reference_error) else ''
         lines.append(f'| {r.slope_deg:g} | {r.voltage:g} | {r.frequency:.3f} | '
-                     f'{100 * r.v_theory:.2f} | {100 * r.v_sim:.2f} | {100 * r.v_tracked:.2f} | '
-                     f'{r.ar_sim:.4f} | {r.ar_tracked:.4f} | {100 * r.relative_error:.3f} | '
+                     f'{_cell(r.v_theory, ".2f", 100)} | {_cell(r.v_sim, ".2f", 100)} | '
+                     f'{_cell(r.v_tracked, ".2f", 100)} | {_cell(r.ar_sim, ".4f")} | '
+                     f'{_cell(r.ar_tracked, ".4f")} | {_cell(r.relative_error, ".3f", 100)} | '
                      f'{measured} | {ref} |')
     lines += ['', '## Mean relative error (tracking against simulation)', '',
               '| voltage (V) | ours (%) | paper, experiment against simulation (%) |',
               '|---|---|---|']
     for v, e in summary['mean_relative_error_by_voltage'].items():
         paper = PAPER_ERRORS_PCT.get(v)
-        lines.append(f'| {v:g} | {100 * e:.3f} | {paper if paper is not None else "-"} |')
-    lines.append(f'| all | {100 * summary["mean_relative_error"]:.3f} | '
+        lines.append(f'| {v:g} | {_cell(e, ".3f", 100)} | '
+                     f'{paper if paper is not None else "-"} |')
+    lines.append(f'| all | {_cell(summary["mean_relative_error"], ".3f", 100)} | '
                  f'{PAPER_ERRORS_PCT["overall"]} |')
+    lines += notes_markdown(results)
     lines += ['', 'Our "experiment" is the virtual camera and tracker, so the error measures the '
               "vision pipeline, not the model; the paper's errors compare its model with the "
               'real robot (it blames its 4 V error on the motor slowing under load, which its '

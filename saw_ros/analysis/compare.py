@@ -79,6 +79,24 @@ class Comparison:
     def steady(self) -> bool:
         return self.status == 'steady'
 
+    def why_not(self, simulated_s: float) -> str:
+        """
+        Return why there is no comparison after ``simulated_s`` s, in words ('' when steady).
+
+        A report reads this instead of printing the nan its speeds then hold.
+        """
+        if self.steady:
+            return ''
+        if not self.frequency > 0:
+            return 'the helix did not turn (0 Hz): there is no wave cycle to measure over'
+        if not math.isfinite(self.steady_from):
+            return (f'the simulated speed did not settle (cycle-to-cycle change of vx under '
+                    f'{100 * STEADY_CCI:g} %) within the {simulated_s:g} s simulated at '
+                    f'{self.frequency:.2f} Hz')
+        return (f'the simulated speed settled at {self.steady_from:.2f} s, less than one whole '
+                f'wave cycle with tracked frames before the end of the {simulated_s:g} s '
+                f'simulated')
+
 
 VELOCITY_WINDOW = 0.010   # s
 

@@ -33,8 +33,10 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
-from saw_ros.analysis.campaign import ConditionResult, duration_for, summarise, write_outputs
+from saw_ros.analysis.campaign import (ConditionResult, duration_for, missing_note,
+                                       notes_markdown, summarise, write_outputs)
 from saw_ros.analysis.compare import RunComparator
+from saw_ros.analysis.shown import shown
 from saw_ros.core import Scenario, simulate
 from saw_ros.core.kinematics import v_theory
 from saw_ros.core.metrics import run_frequency, run_turns
@@ -189,10 +191,11 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
 
 def simulate_conditions(scenarios: Sequence[Scenario]) -> List[tuple]:
     """
-    (v_sim, ar_sim, steady_from, frequency) of each scenario, all simulated as one batch.
+    (v_sim, ar_sim, steady_from, frequency, note) of each scenario, simulated as one batch.
 
     The speed is the campaign's: whole cycles after steady state (RunComparator, truth against
     itself). ``frequency``: the helix's, which a motor reaches under load (``run_frequency``).
+    ``note``: why a speed is missing (not steady) and what to do, '' when there is one.
     """
     duration = max(duration_for(s.frequency) for s in scenarios)
     trajectory = simulate(list(scenarios), duration)
@@ -206,8 +209,9 @@ def simulate_conditions(scenarios: Sequence[Scenario]) -> List[tuple]:
             for row in zip(trajectory.t, run_turns(trajectory, i)):
                 comp.add_helix(*row)
         r = comp.result()
-        out.append((r.v_sim, r.ar_sim, r.steady_from, r.frequency) if r.steady else
-                   (float('nan'), float('nan'), float('nan'), run_frequency(trajectory, i)))
+        out.append((r.v_sim, r.ar_sim, r.steady_from, r.frequency, '') if r.steady else
+                   (float('nan'), float('nan'), float('nan'), run_frequency(trajectory, i),
+                    missing_note(r, duration, s)))
     return out
 
 
@@ -227,7 +231,8 @@ def run_footage(runs: Sequence[FootageRun], base: Optional[Scenario] = None, con
     if progress is not None:
         progress(0)
     out = []
-    for run, s, (v_sim, ar_sim, steady_from, frequency) in zip(runs, scenarios, simulated):
+    for run, s, simulation in zip(runs, scenarios, simulated):
+        v_sim, ar_sim, steady_from, frequency, note = simulation
         # The real helix's speed under load is not measured: take the simulated one (its whole
         # cycles, and the v_theory the measured and simulated AR share).
         m = measure(run, frequency, config)
@@ -238,7 +243,12 @@ def run_footage(runs: Sequence[FootageRun], base: Optional[Scenario] = None, con
             else float('nan')
         cond = ConditionResult(run.slope_deg, voltage, frequency, vth, v_sim, m.speed, ar_sim,
                                ar, abs(ar - ar_sim) / abs(ar_sim), steady_from, m.frames,
-                               m.frames_ok)
+                               m.frames_ok, note=note)
+        if not math.isfinite(m.speed):
+            lost = (f'too few frames with both markers ({m.frames_ok} of {m.frames}) to measure '
+                    f'a speed: look at the tracking with saw-ros track {run.video} --plot '
+                    f'track.png')
+            cond.note = f'{cond.note}; {lost}' if cond.note else lost
         out.append(FootageResult(run, cond, m))
         if progress is not None:
             progress(1)
@@ -307,13 +317,17 @@ def footage_markdown(results: List[FootageResult]) -> str:
         c, m = r.condition, r.measured
         lines.append(f'| {r.run.video.name} | {c.slope_deg:g} | {_f(r.run.voltage, "g")} | '
                      f'{c.frequency:.3f} | {m.px_per_m:.1f} ({m.scale_from}) | '
-                     f'{m.frames_ok}/{m.frames} | {m.window:.2f} | {100 * c.v_tracked:.3f} | '
-                     f'{100 * c.v_sim:.3f} | {c.ar_tracked:.4f} | {c.ar_sim:.4f} | '
-                     f'{100 * c.relative_error:.2f} | {r.run.notes} |')
+                     f'{m.frames_ok}/{m.frames} | {m.window:.2f} | '
+                     f'{shown(c.v_tracked, ".3f", why="-", scale=100)} | '
+                     f'{shown(c.v_sim, ".3f", why="-", scale=100)} | '
+                     f'{shown(c.ar_tracked, ".4f", why="-")} | '
+                     f'{shown(c.ar_sim, ".4f", why="-")} | '
+                     f'{shown(c.relative_error, ".2f", why="-", scale=100)} | {r.run.notes} |')
     lines += ['', '| voltage (V) | mean relative error (%) |', '|---|---|']
     for v, e in summary['mean_relative_error_by_voltage'].items():
-        lines.append(f'| {v:g} | {100 * e:.2f} |')
-    lines.append(f'| all | {100 * summary["mean_relative_error"]:.2f} |')
+        lines.append(f'| {v:g} | {shown(e, ".2f", why="-", scale=100)} |')
+    lines.append(f'| all | {shown(summary["mean_relative_error"], ".2f", why="-", scale=100)} |')
+    lines += notes_markdown([r.condition for r in results])
     return '\n'.join(lines) + '\n'
 
 

@@ -22,6 +22,7 @@ import time
 from saw_ros.analysis.campaign import (PAPER_SLOPES_DEG, PAPER_VOLTAGES, run_campaign,
                                        summarise, write_outputs)
 from saw_ros.analysis.compare import load_reference
+from saw_ros.analysis.shown import finite, shown
 from saw_ros.cli.checks import output_dir, spec_number, text_file, video_input
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
 from saw_ros.cli.errors import UserError
@@ -93,15 +94,32 @@ def run_videos(args):
     print(f'{len(results)} videos in {time.perf_counter() - start:.1f} s')
     for r in results:
         c, m = r.condition, r.measured
+        measured = (f'{100 * c.v_tracked:.3f} cm/s (AR {c.ar_tracked:.4f}, ' if
+                    finite(c.v_tracked) else 'no speed (') + f'{m.frames_ok}/{m.frames} frames ok)'
+        simulated = (f'{100 * c.v_sim:.3f} cm/s (AR {c.ar_sim:.4f})' if finite(c.v_sim) else
+                     'no steady speed')
         print(f'  {r.run.video.name}: {c.slope_deg:g} deg, {c.frequency:.3f} Hz: measured '
-              f'{100 * c.v_tracked:.3f} cm/s (AR {c.ar_tracked:.4f}, {m.frames_ok}/{m.frames} '
-              f'frames ok), simulated {100 * c.v_sim:.3f} cm/s (AR {c.ar_sim:.4f}): '
-              f'{100 * c.relative_error:.2f} %')
+              f'{measured}, simulated {simulated}: '
+              f'{shown(c.relative_error, ".2f", " %", "no error", 100)}')
+        if c.note:
+            print(f'    why: {c.note}')
+    return _summary(summary, 'footage vs simulation', '.2f', paths)
+
+
+def _summary(summary, what: str, spec: str, paths) -> int:
+    """Print the means and the files; exit code 1 when a row could not be compared."""
+    missing = summary['rows'] - summary['compared']
+    over = f' (over {summary["compared"]} of {summary["rows"]} rows)' if missing else ''
+    why = 'not computed: no row here has both speeds (see why above)'
     for v, e in summary['mean_relative_error_by_voltage'].items():
-        print(f'  {v:g} V: mean relative error (footage vs simulation) {100 * e:.2f} %')
-    print(f'  overall: {100 * summary["mean_relative_error"]:.2f} %')
+        print(f'  {v:g} V: mean relative error ({what}) {shown(e, spec, " %", why, 100)}')
+    print(f'  overall: {shown(summary["mean_relative_error"], spec, " %", why, 100)}{over}')
     for name, path in paths.items():
         print(f'{name:10s} {path}')
+    if missing:
+        print(f'saw-ros campaign: {missing} of {summary["rows"]} rows could not be compared '
+              f'(the reasons above and in campaign.md)', file=sys.stderr)
+        return 1
     return 0
 
 
@@ -131,12 +149,10 @@ def run(args):
     paths = write_outputs(results, out)
     summary = summarise(results)
     print(f'{len(results)} conditions in {time.perf_counter() - start:.1f} s')
-    for v, e in summary['mean_relative_error_by_voltage'].items():
-        print(f'  {v:g} V: mean relative error (tracking vs simulation) {100 * e:.3f} %')
-    print(f'  overall: {100 * summary["mean_relative_error"]:.3f} %')
+    for r in results:
+        if r.note:
+            print(f'  {r.slope_deg:g} deg, {r.voltage:g} V: no comparison: {r.note}')
     if summary['reference_points']:
         print(f'  simulation vs the paper\'s {summary["reference_points"]} measured speeds: '
               f'{100 * summary["mean_reference_error"]:.1f} %')
-    for name, path in paths.items():
-        print(f'{name:10s} {path}')
-    return 0
+    return _summary(summary, 'tracking vs simulation', '.3f', paths)
