@@ -1,32 +1,37 @@
 """
-The model's parameters (``core.params.Scenario``) as ROS 2 parameters, for any saw_ros node.
+ROS parameters from spec() tables: the model's (``core.params.Scenario``), each node's own.
 
 Every ``Scenario.describe()`` entry becomes a parameter with the same dotted name
-(``surface.normal_stiffness``), its unit and description in the ParameterDescriptor and a
-FloatingPointRange / IntegerRange where both bounds exist (ROS ranges are closed; open bounds,
-one-sided bounds and checks between several fields are enforced by the Scenario itself).
+(``surface.normal_stiffness``), a node's own ``spec_meta`` entries likewise; the
+ParameterDescriptor carries the description, unit and allowed range. One check for all of them:
+``check_parameter`` (the kind, then ``core.params.check_value``, the rule the Scenario's own
+fields follow), before a start-up value (YAML, ``-p``) is declared and on every run-time change,
+so that a refusal always names the parameter, the value and the range with its unit.
 
-A set-parameters request is validated by building ``scenario.with_values(...)``: an invalid value
-is refused with the ParameterError text, and the node keeps its previous Scenario. Names listed in
-``frozen`` are refused at run time with the given reason (the simulator freezes the robot
-geometry and the time step). Accepted changes reach the node through ``on_change(scenario)``,
-after rclpy has stored them (post-set callback), so that a request refused by another callback
-never half-applies.
+A set-parameters request for the Scenario is validated by building ``scenario.with_values(...)``
+(ranges and the relations between fields): an invalid value is refused with the ParameterError
+text, and the node keeps its previous Scenario. Names listed in ``frozen`` are refused at run
+time with the given reason (the simulator freezes the robot geometry and the time step).
+Accepted changes reach the node through ``on_change(scenario)``, after rclpy has stored them
+(post-set callback), so that a request refused by another callback never half-applies.
 """
 from __future__ import annotations
 
-from typing import Callable, Dict, Iterable, Optional, Tuple
+from typing import Callable, Dict, Iterable, List, Optional, Tuple
 
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                ParameterType, SetParametersResult)
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.parameter import Parameter
 
-from saw_ros.core.params import ParameterError, range_text, Scenario
+from saw_ros.core.params import check_value, ParameterError, range_text, Scenario
 
 
 _TYPES = ((bool, ParameterType.PARAMETER_BOOL), (int, ParameterType.PARAMETER_INTEGER),
           (float, ParameterType.PARAMETER_DOUBLE), (str, ParameterType.PARAMETER_STRING),
           (list, ParameterType.PARAMETER_STRING_ARRAY))
+_ARRAY_TYPES = ((bool, ParameterType.PARAMETER_BOOL_ARRAY),
+                (int, ParameterType.PARAMETER_INTEGER_ARRAY),
+                (float, ParameterType.PARAMETER_DOUBLE_ARRAY),
+                (str, ParameterType.PARAMETER_STRING_ARRAY))
 
 
 def descriptor(name: str, value, meta: Dict, read_only: bool = False) -> ParameterDescriptor:
@@ -34,44 +39,101 @@ def descriptor(name: str, value, meta: Dict, read_only: bool = False) -> Paramet
     Return the ParameterDescriptor for one spec() entry.
 
     The entry is a Scenario's, a vision dataclass's or a node's own; the descriptor has its
-    description [unit], range, constraints.
-    ``ros_range=False`` in the metadata: no ROS range, the node checks the bounds itself (with its
-    own message).
+    description [unit] and, as text, its allowed range with the unit. No ROS range
+    (FloatingPointRange, IntegerRange): rclpy would check it before our check and refuse with a
+    message of its own, without the unit; ROS ranges are closed, where ours can be open.
     """
     unit = meta.get('unit') or ''
     kind = next(t for cls, t in _TYPES if isinstance(value, cls))
-    is_int = kind == ParameterType.PARAMETER_INTEGER
+    if kind == ParameterType.PARAMETER_STRING_ARRAY and value:
+        kind = next(t for cls, t in _ARRAY_TYPES if isinstance(value[0], cls))
     numeric = kind in (ParameterType.PARAMETER_INTEGER, ParameterType.PARAMETER_DOUBLE)
-    desc = ParameterDescriptor(
+    return ParameterDescriptor(
         name=name, type=kind, read_only=read_only,
         description=meta.get('description', '') + (f' [{unit}]' if unit else '')
         + (' (start-up only)' if read_only else ''),
         additional_constraints=f'allowed {range_text(meta)}' if numeric and 'low' in meta
-        else '')
-    low, high = meta.get('low'), meta.get('high')
-    if numeric and low is not None and high is not None and meta.get('ros_range', True):
-        if is_int:
-            desc.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
-        else:
-            desc.floating_point_range = [FloatingPointRange(from_value=float(low),
-                                                            to_value=float(high), step=0.0)]
-    return desc
+        else f'one of {", ".join(meta["choices"])}' if meta.get('choices') else '')
 
 
-def accept_integers_for_doubles(node, names: Iterable[str], defaults: Dict) -> None:
+_KINDS = ((bool, 'true or false', 'booleans'), (int, 'an integer', 'integers'),
+          (float, 'a number', 'numbers'), (str, 'a string', 'strings'))
+
+
+def _kind_name(default) -> str:
+    """Return what a value of the kind of ``default`` is called in a refusal."""
+    if isinstance(default, (list, tuple)):
+        sample = default[0] if default else ''
+        return 'a list of ' + next(many for cls, _, many in _KINDS if isinstance(sample, cls))
+    return next(one for cls, one, _ in _KINDS if isinstance(default, cls))
+
+
+def _same_kind(value, default) -> bool:
+    """``value`` may stand for ``default``: same type, or an integer for a float (not a bool)."""
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(value, bool) and isinstance(default, bool)
+    if isinstance(default, float):
+        return isinstance(value, (int, float))
+    return isinstance(value, type(default))
+
+
+def check_parameter(name: str, value, default, meta: Dict):
     """
-    ``-p conditions.slope:=0`` or ``slope: 0`` in YAML arrive as INTEGER overrides.
+    Return ``value`` for the spec() entry (``name``, ``default``, ``meta``), or ParameterError.
 
-    Which rclpy refuses for a DOUBLE parameter: turn them into doubles before declaring.
+    Its kind must be the default's (an integer is taken for a floating-point number, alone or in
+    a list), then ``core.params.check_value``: finite, in range, among the choices. The same
+    check at start (YAML, ``-p``) and for a run-time change, with one kind of message.
     """
+    if value is None:
+        return value
+    if isinstance(default, (list, tuple)):
+        if not isinstance(value, (list, tuple)) or (default and not all(
+                _same_kind(v, default[0]) for v in value)):
+            raise ParameterError(f'{name} = {value!r} is invalid: must be {_kind_name(default)}')
+        return [float(v) for v in value] if default and isinstance(default[0], float) \
+            else list(value)
+    if not _same_kind(value, default):
+        numeric = isinstance(default, (int, float)) and not isinstance(default, bool)
+        raise ParameterError(f'{name} = {value!r} is invalid: must be {_kind_name(default)}'
+                             + (f' in {range_text(meta)}' if numeric else ''))
+    return check_value(name, value, meta, default)
+
+
+def _overrides(node) -> Dict[str, Parameter]:
+    """Return the node's start-up values (YAML, ``-p``) by name, kept by rclpy until declared."""
     overrides = getattr(node, '_parameter_overrides', None)
-    if not isinstance(overrides, dict):
-        return
-    for name in names:
+    return overrides if isinstance(overrides, dict) else {}
+
+
+def check_start_values(node, entries: Iterable[Tuple[str, object, Dict]]) -> Dict[str, object]:
+    """
+    Check the start-up values of ``entries`` (``check_parameter``) before they are declared.
+
+    Returns {name: value} of those given. An integer given for a floating-point parameter
+    (``-p fps:=30``, ``slope: 0`` in YAML) is turned into one, which rclpy would refuse.
+    Raises ParameterError (the first value refused), so that the node's one line is ours, with
+    the range and its unit, instead of rclpy's.
+    """
+    overrides = _overrides(node)
+    given = {}
+    for name, default, meta in entries:
         p = overrides.get(name)
-        if (p is not None and p.type_ == Parameter.Type.INTEGER
-                and isinstance(defaults[name], float)):
-            overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(p.value))
+        if p is None or p.type_ == Parameter.Type.NOT_SET:
+            continue
+        value = check_parameter(name, p.value, default, meta)
+        if isinstance(default, float) and p.type_ == Parameter.Type.INTEGER:
+            overrides[name] = Parameter(name, Parameter.Type.DOUBLE, value)
+        elif (isinstance(default, (list, tuple)) and default and isinstance(default[0], float)
+              and p.type_ == Parameter.Type.INTEGER_ARRAY):
+            overrides[name] = Parameter(name, Parameter.Type.DOUBLE_ARRAY, value)
+        given[name] = value
+    return given
+
+
+def unknown_start_values(node) -> List[str]:
+    """Return the names given at start (YAML, ``-p``) that ``node`` did not declare."""
+    return sorted(n for n in _overrides(node) if not node.has_parameter(n))
 
 
 def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: bool = True
@@ -79,17 +141,28 @@ def declare_spec(node, entries: Iterable[Tuple[str, object, Dict]], read_only: b
     """
     Declare spec() entries (name, default, metadata) on ``node`` with their descriptors.
 
-    (read-only by default: read at start-up only; an entry's ``read_only`` metadata decides for it)
-    and returns {name: value}. An integer given for a double (``-p fps:=30``) is taken as a double.
-    Raises rclpy's ParameterException (an out-of-range value: InvalidParameterValueException) for
-    an invalid start-up value.
+    Read-only by default (read at start-up only); an entry's ``read_only`` metadata decides for
+    it. Returns {name: value}. Start-up values are checked first (``check_start_values``: raises
+    ParameterError); run-time changes of the others are checked the same way, refused with the
+    reason.
     """
     entries = list(entries)
-    defaults = {n: v for n, v, _ in entries}
-    accept_integers_for_doubles(node, defaults, defaults)
+    check_start_values(node, entries)
     declared = node.declare_parameters('', [(n, v, descriptor(n, v, m,
                                                               m.get('read_only', read_only)))
                                             for n, v, m in entries])
+    live = {n: (v, m) for n, v, m in entries if not m.get('read_only', read_only)}
+    if live:
+        def validate(parameters) -> SetParametersResult:
+            for p in parameters:
+                if p.name in live:
+                    try:
+                        check_parameter(p.name, p.value, *live[p.name])
+                    except ParameterError as exc:
+                        node.get_logger().warning(f'parameter change refused: {exc}')
+                        return SetParametersResult(successful=False, reason=str(exc))
+            return SetParametersResult(successful=True)
+        node.add_on_set_parameters_callback(validate)
     return {p.name: p.value for p in declared}
 
 
@@ -118,12 +191,10 @@ class ScenarioParameters:
         exclude = set(exclude)
         entries = [(n, v, m) for n, v, m in base.describe() if n not in exclude]
         self.names: Tuple[str, ...] = tuple(n for n, _, _ in entries)
-        accept_integers_for_doubles(node, self.names, {n: v for n, v, _ in entries})
-        declared = node.declare_parameters('', [(n, v, descriptor(n, v, m))
-                                                for n, v, m in entries])
-        # Validate the start-up values (YAML, -p) as a whole: the Scenario checks every range and
-        # the relations between fields.
-        self.scenario = base.with_values({p.name: p.value for p in declared})
+        # The start-up values (YAML, -p) are checked one by one, then as a whole before they
+        # are declared: the Scenario checks every range and the relations between fields.
+        self.scenario = base.with_values(check_start_values(node, entries))
+        node.declare_parameters('', [(n, v, descriptor(n, v, m)) for n, v, m in entries])
         node.add_on_set_parameters_callback(self._validate)
         node.add_post_set_parameters_callback(self._apply)
 

@@ -13,10 +13,13 @@ the node is destroyed, and only then the context shut down. Why: docs/measuremen
 """
 from __future__ import annotations
 
+import ast
+import os
+import re
 import signal
 import sys
 import time
-from typing import Callable, List, Optional
+from typing import Callable, Iterable, List, Optional
 
 
 # s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.
@@ -150,7 +153,8 @@ def _context_gone(exc: BaseException, node) -> bool:
 
 
 def run_node(make_node: Callable[[], 'object'], args=None,
-             spin: Optional[Callable[[object], None]] = None, events: bool = False) -> int:
+             spin: Optional[Callable[[object], None]] = None, events: bool = False,
+             name: str = 'saw_ros', parameters: Optional[Callable[[], Iterable]] = None) -> int:
     """
     Build and spin a node until Ctrl-C, SIGTERM, shutdown or NodeFailure; return exit code.
 
@@ -160,10 +164,34 @@ def run_node(make_node: Callable[[], 'object'], args=None,
     has one: finish files, stop the node's threads), subscribers get up to FLUSH_TIMEOUT to
     acknowledge the last messages (``flush``), the node is destroyed and the context shut
     down, in that order; exit code 0.
+
+    Before anything starts, the command line (``args``, else ``sys.argv``): ``-h``/``--help``
+    prints the node's ``parameters()`` (spec() entries: name, default, metadata) and returns 0;
+    an unknown argument, a params file that is missing or not YAML, or ROS arguments rcl cannot
+    parse end it with one FATAL line under the node's ``name`` and exit code 1. Start-up values
+    for parameters the node did not declare are named in a warning.
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
+    from saw_ros.core.params import ParameterError
+    from saw_ros.ros.params import unknown_start_values
+
+    argv = list(sys.argv if args is None else args)
+    try:
+        wants_help = check_command_line(argv)
+    except ParameterError as exc:
+        rclpy.logging.get_logger(name).fatal(str(exc))
+        return 1
+    if wants_help:
+        try:
+            print(help_text(name, parameters, getattr(sys.modules.get(
+                getattr(make_node, '__module__', '')), '__doc__', None)), flush=True)
+        except BrokenPipeError:
+            # The reader (`| head`) stopped reading: no error of ours. Python would report
+            # the broken pipe again when it flushes stdout at exit.
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
     # No rclpy signal handlers (they would shut the context down under a running callback):
     # ours only request the stop, from before rcl starts (checked once the node is built).
@@ -178,8 +206,14 @@ def run_node(make_node: Callable[[], 'object'], args=None,
     try:
         if _STOP.requested:
             return code               # stopped before it started: nothing to finish
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         node = make_node()
+        unknown = unknown_start_values(node)
+        if unknown:
+            node.get_logger().warning(
+                f'unknown parameter{"s" if len(unknown) > 1 else ""} ignored: '
+                f'{", ".join(unknown)} ({name} declares no such parameter; {name} --help '
+                f'lists them)')
         if _STOP.requested:
             pass                      # stopped while the node was being built
         elif spin is not None:
@@ -194,9 +228,11 @@ def run_node(make_node: Callable[[], 'object'], args=None,
                 context=node.context))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except NodeFailure as exc:
-        logger = node.get_logger() if node is not None else rclpy.logging.get_logger('saw_ros')
-        logger.fatal(str(exc))
+    except (NodeFailure, ParameterError) as exc:
+        # (a node not built yet has no logger of its own: the same name, so that the FATAL line
+        # says which node refused)
+        logger = node.get_logger() if node is not None else rclpy.logging.get_logger(name)
+        logger.fatal(str(exc) if isinstance(exc, NodeFailure) else f'invalid parameters: {exc}')
         code = 1
     except Exception as exc:  # noqa: BLE001  (re-raised unless the context went away)
         if not _context_gone(exc, node):
@@ -211,6 +247,119 @@ def run_node(make_node: Callable[[], 'object'], args=None,
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
     return code
+
+
+HELP_FLAGS = ('-h', '--help')
+
+
+def check_command_line(argv: List[str]) -> bool:
+    """
+    Return whether ``argv`` (with the program's name first) asks for help.
+
+    Raises ParameterError, with one line, for what would make rcl fail or be silently ignored:
+    an argument that is neither ROS's nor ``-h``/``--help``, a ``--params-file`` that is missing,
+    unreadable or not YAML, and ROS arguments rcl cannot parse (its message, without its source
+    locations).
+    """
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    from rclpy.utilities import remove_ros_args
+    from saw_ros.core.params import ParameterError
+    for flag, path in zip(argv, argv[1:]):
+        if flag == '--params-file':
+            check_params_file(path)
+    try:
+        rest = remove_ros_args(argv)[1:]
+    except _rclpy.RCLInvalidROSArgsError as exc:
+        text = re.sub(r', at [^,]*\.c:\d+', '', str(exc)).replace('\n', ' ').strip()
+        raise ParameterError(text.replace('Failed to parse ROS arguments: ',
+                                          'invalid ROS arguments: ')) from None
+    except _rclpy.UnknownROSArgsError as exc:
+        # After --ros-args: -h and --help are ours there too; rcl names the others as a list.
+        try:
+            extra = [str(a) for a in ast.literal_eval(str(exc))]
+        except (ValueError, SyntaxError, TypeError):
+            extra = [str(exc)]
+        unknown = [a for a in extra if a not in HELP_FLAGS]
+        if unknown:
+            raise ParameterError(f'unknown ROS argument{"s" if len(unknown) > 1 else ""} '
+                                 f'{" ".join(unknown)} (--help lists the parameters)') from None
+        return True
+    unknown = [a for a in rest if a not in HELP_FLAGS]
+    if unknown:
+        raise ParameterError(f'unknown argument{"s" if len(unknown) > 1 else ""} '
+                             f'{" ".join(unknown)}: parameters go after --ros-args, as -p '
+                             f'NAME:=VALUE or --params-file FILE (--help lists them)')
+    return any(a in HELP_FLAGS for a in rest)
+
+
+def check_params_file(path: str) -> None:
+    """
+    Raise ParameterError (one line) unless ``path`` is a YAML file of node names.
+
+    rcl's own refusal is two lines ("Failed to parse global arguments", then the error) and left
+    the node to exit 0.
+    """
+    import yaml
+    from saw_ros.core.params import ParameterError
+    try:
+        with open(path, encoding='utf-8') as f:
+            doc = yaml.safe_load(f)
+    except FileNotFoundError:
+        raise ParameterError(f'params file {path} does not exist') from None
+    except OSError as exc:
+        raise ParameterError(f'params file {path} cannot be read: {exc.strerror or exc}') \
+            from None
+    except UnicodeDecodeError:
+        raise ParameterError(f'params file {path} is not YAML: not UTF-8 text') from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}' if mark is not None else ''
+        raise ParameterError(f'params file {path} is not YAML: '
+                             f'{getattr(exc, "problem", None) or exc}{where}') from None
+    if not isinstance(doc, dict):
+        raise ParameterError(f'params file {path} is not a ROS parameters file: expected '
+                             f'"<node name>: ros__parameters: ..." at its top, found '
+                             f'{type(doc).__name__ if doc is not None else "nothing"}')
+
+
+def _type_name(value) -> str:
+    """Return a parameter's ROS type name, from its default."""
+    if isinstance(value, (list, tuple)):
+        return _type_name(value[0] if value else '') + '[]'
+    return next(n for cls, n in ((bool, 'bool'), (int, 'integer'), (float, 'double'),
+                                 (str, 'string')) if isinstance(value, cls))
+
+
+def help_text(name: str, parameters: Optional[Callable[[], Iterable]],
+              doc: Optional[str] = None) -> str:
+    """
+    Return a node's ``--help``: usage, what it does (``doc``'s first line), its parameters.
+
+    Each with its type, unit, allowed range and default, from the spec() entries the node
+    declares (``parameters()``), so that the help cannot drift from the node.
+    """
+    import textwrap
+    from saw_ros.core.params import range_text
+    doc = (doc or '').replace('``', '').strip().splitlines()
+    lines = [f'usage: {name} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE]]', '']
+    if doc:
+        lines += [doc[0], '']
+    entries = list(parameters()) if parameters is not None else []
+    lines.append('parameters (name: type [unit] in allowed range, default):' if entries
+                 else "parameters: see the node's documentation")
+    for pname, default, meta in entries:
+        unit = meta.get('unit') or ''
+        numeric = isinstance(default, (int, float)) and not isinstance(default, bool)
+        allowed = (range_text(dict(meta, unit='')) if numeric and 'low' in meta
+                   else 'one of ' + ', '.join(meta['choices']) if meta.get('choices') else '')
+        shown = repr(default) if not isinstance(default, bool) else str(default).lower()
+        head = f'  {pname}: {_type_name(default)}' + (f' [{unit}]' if unit else '') + \
+            (f' in {allowed}' if allowed and not allowed.startswith('one') else
+             f', {allowed}' if allowed else '') + f', default {shown}'
+        lines.append(head)
+        lines += textwrap.wrap(meta.get('description', ''), 95, initial_indent='      ',
+                               subsequent_indent='      ')
+    return '\n'.join(lines)
 
 
 def flush(node, timeout: float = FLUSH_TIMEOUT) -> List[str]:

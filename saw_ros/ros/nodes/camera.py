@@ -85,7 +85,7 @@ PARAMETERS = (
     ('image_transport', 'both',
      spec_meta('', "images published: 'raw' (Image on image_raw), 'compressed' (JPEG "
                    'CompressedImage on image_raw/compressed, what the recorder takes) or '
-                   "'both'")),
+                   "'both'", choices=TRANSPORTS)),
     ('jpeg_quality', compressed.DEFAULT_QUALITY,
      spec_meta('', 'JPEG quality of the compressed images', 1, 100)),
     ('video_path', '', spec_meta('', '.mp4 file to write the frames to; empty = none')),
@@ -94,6 +94,10 @@ PARAMETERS = (
     ('joint_states_topic', topics.JOINT_STATES,
      spec_meta('', "joint states input (JointState with 'helix')")),
 )
+# Scenario parameters the camera does not declare: it needs only what the drawing needs, the
+# robot geometry and the gap.
+SCENARIO_EXCLUDED = tuple(n for n, _, _ in Scenario().describe()
+                          if not (n.startswith('robot.') or n == 'conditions.gap'))
 YAML_HEADER = """\
 Parameters of the saw_ros camera node (virtual 60 fps side-view camera):
   python -m saw_ros.ros.nodes.camera --ros-args --params-file msg_config/camera.yaml
@@ -113,10 +117,7 @@ class CameraNode(Node):
     def __init__(self, **kwargs):
         super().__init__('camera', **kwargs)
         try:
-            # Only what the drawing needs: the robot geometry and the gap.
-            exclude = [n for n, _, _ in Scenario().describe()
-                       if not (n.startswith('robot.') or n == 'conditions.gap')]
-            self.params = ScenarioParameters(self, exclude=exclude,
+            self.params = ScenarioParameters(self, exclude=SCENARIO_EXCLUDED,
                                              frozen={'robot': 'restart the camera',
                                                      'conditions.gap': 'restart the camera'})
             p = declare_spec(self, PARAMETERS)
@@ -130,15 +131,6 @@ class CameraNode(Node):
                                     blur_samples=int(p['blur_samples']),
                                     brightness=float(p['brightness']), texture=bool(p['texture']),
                                     seed=int(p['seed']))
-            if p['image_transport'] not in TRANSPORTS:
-                raise ValueError(f"image_transport = {p['image_transport']!r}: one of "
-                                 + ', '.join(TRANSPORTS))
-            if not 1 <= p['jpeg_quality'] <= 100:
-                raise ValueError(f"jpeg_quality = {p['jpeg_quality']} must be in [1, 100]")
-            if not p['fps'] > 0:
-                raise ValueError(f"fps = {p['fps']} must be > 0")
-            if not (0 < p['follow_margin'] < 0.5 and p['follow_step'] >= 0):
-                raise ValueError('follow_margin must be in (0, 0.5) and follow_step >= 0')
             scenario = self.params.scenario
             self.renderer = Renderer(scenario.robot, scenario.conditions.gap, camera, options)
             self.writer = VideoWriter(p['video_path'], p['fps'], (camera.width, camera.height)) \
@@ -388,9 +380,14 @@ class CameraNode(Node):
               flush=True)
 
 
+def parameters():
+    """Every parameter the node declares: the Scenario's it draws with, then its own."""
+    return [e for e in Scenario().describe() if e[0] not in SCENARIO_EXCLUDED] + list(PARAMETERS)
+
+
 def main(args=None) -> int:
     one_opencv_thread()
-    return run_node(CameraNode, args=args, events=True)
+    return run_node(CameraNode, args=args, events=True, name='camera', parameters=parameters)
 
 
 if __name__ == '__main__':

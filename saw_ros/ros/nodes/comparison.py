@@ -27,8 +27,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import (ParameterEvent, ParameterType,
-                                SetParametersResult)
+from rcl_interfaces.msg import ParameterEvent, ParameterType
 from rcl_interfaces.srv import GetParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
@@ -59,8 +58,8 @@ def _value(p):
             ParameterType.PARAMETER_STRING: p.string_value}.get(p.type)
 
 
-# (name, default, spec metadata); read_only ones are read once, at start. The node checks the
-# bounds itself (POSITIVE), with its own message.
+# (name, default, spec metadata); read_only ones are read once, at start. declare_spec checks
+# the values against these ranges, at start and on every change.
 PARAMETERS = (
     ('simulator_node', 'simulator', spec_meta(
         '', 'name of the simulator node whose parameters define the run', read_only=True)),
@@ -94,14 +93,6 @@ def yaml_file() -> str:
     return yaml_text('comparison', YAML_HEADER, PARAMETERS, with_scenario=False)
 
 
-POSITIVE = ('steady_threshold', 'report_period', 'idle_timeout')
-
-
-def _check_positive(name, value) -> None:
-    if name in POSITIVE and not (math.isfinite(value) and value > 0):
-        raise ValueError(f'{name} = {value} must be a finite number > 0')
-
-
 def read_reference(path: str):
     """
     Return the reference points of ``path`` ('' = none).
@@ -129,11 +120,8 @@ class ComparisonNode(Node):
         super().__init__('comparison', **kwargs)
         try:
             declare_spec(self, PARAMETERS)
-            for name in POSITIVE:
-                _check_positive(name, self.get_parameter(name).value)
         except (ParameterException, ValueError) as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from None
-        self.add_on_set_parameters_callback(self._validate)
         self.reference = read_reference(self.get_parameter('reference_file').value)
         self.scenario_values = {}
         self.scenario = Scenario()
@@ -165,16 +153,6 @@ class ComparisonNode(Node):
         self._pending = None
         self.create_timer(self.get_parameter('report_period').value, self._tick,
                           clock=self._wall)
-
-    def _validate(self, parameters) -> SetParametersResult:
-        """Run-time changes of the live parameters (the others are read-only)."""
-        for p in parameters:
-            try:
-                _check_positive(p.name, p.value)
-            except (TypeError, ValueError) as exc:
-                self.get_logger().warning(f'parameter change refused: {exc}')
-                return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
 
     # -- the run's conditions, from the simulator ---------------------------------------------
     def _request_parameters(self):
@@ -328,7 +306,8 @@ def spin_until_done(node: ComparisonNode) -> None:
 
 
 def main(args=None):
-    return run_node(ComparisonNode, args, spin=spin_until_done)
+    return run_node(ComparisonNode, args, spin=spin_until_done, name='comparison',
+                    parameters=lambda: PARAMETERS)
 
 
 if __name__ == '__main__':

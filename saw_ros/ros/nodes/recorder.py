@@ -60,8 +60,8 @@ from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_node
 import yaml
 
 _STOP = object()
-# (name, default, spec metadata); every one read once at start, so read-only. The node checks
-# the bounds itself, with its own message. exclude_topics' default (None) is record_topics.yaml's.
+# (name, default, spec metadata); every one read once at start, so read-only. declare_spec checks
+# the values against these ranges. exclude_topics' default (None) is record_topics.yaml's.
 PARAMETERS = (
     ('topics', [''], spec_meta('', 'topics to record; empty: msg_config/record_topics.yaml')),
     ('exclude_topics', None, spec_meta('', 'topics under a prefix not to record (default: '
@@ -72,7 +72,7 @@ PARAMETERS = (
     ('bags_dir', 'bags', spec_meta('', 'where new bags go')),
     ('label', 'default', spec_meta('', 'what is recorded, for the directory name')),
     ('queue_depth', 1000, spec_meta('', 'subscription history depth', 1, None)),
-    ('compression', 'zstd', spec_meta('', 'zstd or none')),
+    ('compression', 'zstd', spec_meta('', 'zstd or none', choices=('zstd', 'none'))),
     ('chunk_size', 768 * 1024, spec_meta('bytes', 'bytes per MCAP chunk', 1, None)),
     ('discovery_period', 0.25, spec_meta('s', 'seconds between looks for new topics', 0.0, None,
                                          low_open=True)),
@@ -247,15 +247,9 @@ class Recorder(Node):
         try:
             # All read once, here: read-only, so that `ros2 param set` is refused with the
             # reason instead of reporting a change that would not happen.
-            declare_spec(self, [(n, d if d is not None else (default_excluded() or ['']), m)
-                                for n, d, m in PARAMETERS])
+            declare_spec(self, parameters())
         except ParameterException as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from None
-        bad = [f'{n} = {self.get_parameter(n).value} must be > 0'
-               for n in ('queue_depth', 'chunk_size', 'discovery_period')
-               if not self.get_parameter(n).value > 0]
-        if bad:
-            raise NodeFailure(f'invalid parameters: {", ".join(bad)}')
 
         topics = [t for t in self.get_parameter('topics').value if t]
         if topics:
@@ -495,8 +489,14 @@ def _spin(node) -> None:
     spin_node(node, executor=SingleThreadedExecutor(context=node.context), pause=ROUND_PAUSE)
 
 
+def parameters():
+    """PARAMETERS as declared: exclude_topics' default from msg_config/record_topics.yaml."""
+    return [(n, d if d is not None else (default_excluded() or ['']), m)
+            for n, d, m in PARAMETERS]
+
+
 def main(args=None) -> int:
-    return run_node(Recorder, args=args, spin=_spin)
+    return run_node(Recorder, args=args, spin=_spin, name='recorder', parameters=parameters)
 
 
 if __name__ == '__main__':

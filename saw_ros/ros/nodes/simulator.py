@@ -41,7 +41,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
-from saw_ros.core.params import ParameterError
+from saw_ros.core.params import ParameterError, Scenario
 from saw_ros.core.params import spec_meta
 from saw_ros.interface import frames, scene_markers, topics, urdf
 from saw_ros.ros import conversions as conv
@@ -340,13 +340,12 @@ OWN_PARAMETERS = (
     ('duration', 0.0, spec_meta('s', 'simulated time, then the node exits with code 0; 0 = run '
                                      'until stopped', 0.0, None)),
     ('markers_rate', markers.RATE, spec_meta(
-        'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers, and surface -> '
-        'base_link on /tf, per simulated second (at most one per step); 0 = none', 0.0, None,
-        read_only=True)),
+        'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers per simulated second '
+        '(at most one per step); 0 = none', 0.0, None, read_only=True)),
     ('wait_for_subscribers', 0, spec_meta('', 'before the first step, wait until every topic has '
                                               'at least this many subscribers (tests, benchmarks, '
                                               'recordings that must see every step); 0 = start '
-                                              'at once', 0, None)),
+                                              'at once', 0, None, read_only=True)),
 )
 YAML_HEADER = """\
 Parameters of the saw_ros simulator node:
@@ -365,8 +364,14 @@ def yaml_file() -> str:
     return yaml_text('simulator', YAML_HEADER, OWN_PARAMETERS, exclude=EXCLUDED)
 
 
+def parameters():
+    """Every parameter the node declares: the Scenario's (less EXCLUDED), then its own."""
+    return [e for e in Scenario().describe() if e[0] not in EXCLUDED] + list(OWN_PARAMETERS)
+
+
 def main(args=None) -> int:
-    return run_node(SimulatorNode, args=args, spin=spin)
+    return run_node(SimulatorNode, args=args, spin=spin, name='simulator',
+                    parameters=parameters)
 
 
 if __name__ == '__main__':

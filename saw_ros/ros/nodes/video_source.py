@@ -30,15 +30,16 @@ os.environ.setdefault('OPENCV_FFMPEG_LOGLEVEL', '-8')
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
-from rcl_interfaces.msg import ParameterDescriptor  # noqa: E402
 from rclpy.clock import Clock, ClockType  # noqa: E402
 from rclpy.exceptions import ParameterException  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rosgraph_msgs.msg import Clock as ClockMsg  # noqa: E402
+from saw_ros.core.params import spec_meta  # noqa: E402
 from saw_ros.interface import topics  # noqa: E402
 from saw_ros.ros import cdr  # noqa: E402
 from saw_ros.ros import conversions as conv  # noqa: E402
 from saw_ros.ros.cdr import NS_PER_S  # noqa: E402
+from saw_ros.ros.params import declare_spec  # noqa: E402
 from saw_ros.ros.qos import CLOCK_QOS, image_publisher_qos  # noqa: E402
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_node  # noqa: E402
 from saw_ros.vision import one_opencv_thread  # noqa: E402
@@ -49,20 +50,28 @@ IMAGE_EXTENSIONS = ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.tiff', '.ppm', '.
 TICK = 0.002            # s, wall-clock timer period of the publishing loop
 INFO_GRACE = 2.0        # s to wait for camera-info subscribers once the image ones matched
 
+# (name, default, spec metadata); every one read once at start, so read-only. declare_spec checks
+# the values against these ranges.
 PARAMETERS = (
-    ('path', '', 'video file, or folder of frame images (sorted by name)'),
-    ('fps', 0.0, "frame rate [Hz]; 0 = the file's (a folder needs it)"),
-    ('loop', False, 'start the file again at its end (stamps go on)'),
-    ('rate', 1.0, 'real-time factor: video seconds per wall-clock second'),
-    ('publish_clock', False, "publish /clock with each frame's stamp (for use_sim_time nodes)"),
-    ('frame_id', 'saw_camera', 'frame_id of the images and camera info'),
-    ('px_per_m', 0.0, 'pixels per metre in the plane of motion [px/m]; with distance gives K'),
-    ('distance', 1.0, 'camera to the plane of motion [m]: fx = px_per_m * distance'),
-    ('camera_matrix', [0.0], 'FX, FY, CX, CY [px] of a calibration; overrides px_per_m'),
-    ('wait_for_subscribers', 0, 'image (and camera info) subscribers to wait for before the '
-                                'first frame'),
-    ('image_topic', topics.IMAGE, 'image output (sensor_msgs/Image, bgr8)'),
-    ('camera_info_topic', topics.CAMERA_INFO, 'camera info output'),
+    ('path', '', spec_meta('', 'video file, or folder of frame images (sorted by name); '
+                               'required')),
+    ('fps', 0.0, spec_meta('Hz', "frame rate; 0 = the file's (a folder needs it)", 0.0, None)),
+    ('loop', False, spec_meta('', 'start the file again at its end (stamps go on)')),
+    ('rate', 1.0, spec_meta('', 'real-time factor: video seconds per wall-clock second', 0.0,
+                            None, low_open=True)),
+    ('publish_clock', False, spec_meta('', "publish /clock with each frame's stamp (for "
+                                           'use_sim_time nodes)')),
+    ('frame_id', 'saw_camera', spec_meta('', 'frame_id of the images and camera info')),
+    ('px_per_m', 0.0, spec_meta('px/m', 'pixels per metre in the plane of motion; with distance '
+                                        'gives K', 0.0, None)),
+    ('distance', 1.0, spec_meta('m', 'camera to the plane of motion: fx = px_per_m * distance',
+                                0.0, None, low_open=True)),
+    ('camera_matrix', [0.0], spec_meta('px', 'FX, FY, CX, CY of a calibration; overrides '
+                                             'px_per_m')),
+    ('wait_for_subscribers', 0, spec_meta('', 'image (and camera info) subscribers to wait for '
+                                              'before the first frame', 0, None)),
+    ('image_topic', topics.IMAGE, spec_meta('', 'image output (sensor_msgs/Image, bgr8)')),
+    ('camera_info_topic', topics.CAMERA_INFO, spec_meta('', 'camera info output')),
 )
 
 
@@ -173,23 +182,14 @@ class VideoSourceNode(Node):
     def __init__(self, **kwargs):
         super().__init__('video_source', **kwargs)
         try:
-            for name, default, text in PARAMETERS:
-                self.declare_parameter(name, default, ParameterDescriptor(
-                    description=text, read_only=True))
-            p = {name: self.get_parameter(name).value for name, _, _ in PARAMETERS}
+            p = declare_spec(self, PARAMETERS)
             if not p['path']:
                 raise ValueError('give the video: -p path:=<file or folder>')
-            if not (p['rate'] > 0 and math.isfinite(p['rate'])):
-                raise ValueError(f"rate = {p['rate']} must be > 0")
-            if p['fps'] < 0:
-                raise ValueError(f"fps = {p['fps']} must be >= 0 (0: the file's)")
             matrix = [float(v) for v in p['camera_matrix']]
             if matrix == [0.0]:
                 matrix = []
             if matrix and (len(matrix) != 4 or not matrix[0] > 0 or not matrix[1] > 0):
                 raise ValueError(f'camera_matrix = {matrix}: give FX, FY, CX, CY (px, FX, FY > 0)')
-            if p['px_per_m'] < 0 or not p['distance'] > 0:
-                raise ValueError('px_per_m must be >= 0 and distance > 0')
             self.source = FrameSource(p['path'], float(p['fps']))
         except (ParameterException, ValueError, TypeError) as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from exc
@@ -285,7 +285,8 @@ class VideoSourceNode(Node):
 
 def main(args=None) -> int:
     one_opencv_thread()
-    return run_node(VideoSourceNode, args=args,
+    return run_node(VideoSourceNode, args=args, name='video_source',
+                    parameters=lambda: PARAMETERS,
                     spin=lambda node: spin_node(node, until=lambda: node.done))
 
 

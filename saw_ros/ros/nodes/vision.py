@@ -69,7 +69,7 @@ PARAMETERS = (
      spec_meta('', 'image input (sensor_msgs/Image, bgr8 or rgb8)')),
     ('image_transport', 'raw',
      spec_meta('', "'raw': Image on image_topic; 'compressed': CompressedImage (JPEG) on "
-                   'image_topic/compressed')),
+                   'image_topic/compressed', choices=compressed.TRANSPORTS)),
     ('camera_info_topic', topics.CAMERA_INFO,
      spec_meta('', 'camera info input (K gives the scale)')),
     ('px_per_m', 0.0, spec_meta('px/m', 'pixels per metre in the plane of motion; 0 = from '
@@ -110,11 +110,6 @@ class VisionNode(Node):
             optional = {k: (None if not any(p[k] if k == 'roi' else [p[k]]) else
                             tuple(p[k]) if k == 'roi' else p[k]) for k in OPTIONAL_FIELDS}
             self.config = TrackerConfig(**{k: p[k] for k in CONFIG_FIELDS}, **optional)
-            if p['image_transport'] not in compressed.TRANSPORTS:
-                raise ValueError(f"image_transport = {p['image_transport']!r}: raw or "
-                                 'compressed')
-            if p['px_per_m'] < 0 or not p['plane_distance'] > 0:
-                raise ValueError('px_per_m must be >= 0 and plane_distance > 0')
         except (ParameterException, ValueError, TypeError) as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from exc
         self.p = p
@@ -287,7 +282,8 @@ class VisionNode(Node):
 
 def main(args=None) -> int:
     one_opencv_thread()
-    return run_node(VisionNode, args=args, events=True)
+    return run_node(VisionNode, args=args, events=True, name='vision',
+                    parameters=lambda: PARAMETERS)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,212 @@
+"""
+Bad input to every node executable: one line naming the input, exit code 1, no traceback.
+
+Issue 20's table, one row per node: a value out of range (the message gives the range with its
+unit), a value of the wrong type, a params file that does not exist or is not YAML, an argument
+that is not ROS's; a misspelt ``-p`` name is named in a warning and the node runs on; ``--help``
+and ``-h`` list the node's parameters from the spec tables it declares, exit 0, start nothing and
+write no file. Add a row whenever a user finds a new way in.
+
+Every node runs as its own process in the run's isolated DDS domain (tests/conftest.py); the
+bad inputs end it before it spins, so a node's cases run side by side.
+"""
+import importlib
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+from saw_ros.core.params import range_text
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+from saw_ros.ros.nodes import EXECUTABLES
+
+pytestmark = pytest.mark.ros
+
+TIMEOUT = 60
+
+
+def _frames(folder: Path) -> Path:
+    """Return a folder of three small frame images (video_source plays them at -p fps)."""
+    import cv2
+    import numpy as np
+    folder.mkdir()
+    for i in range(3):
+        cv2.imwrite(str(folder / f'{i:03d}.png'), np.full((48, 64, 3), 40 * i, np.uint8))
+    return folder
+
+
+def _bag(folder: Path) -> Path:
+    """Return a small bag (50 ms of /clock and /saw/pose) for the player."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bag'))
+    from test_bag_format import write_bag
+    write_bag(folder, n=50)
+    return folder
+
+
+# node: (parameters with which it starts normally, a misspelt name, (name, value out of range,
+# the range as the refusal states it), (name, value of the wrong kind, what it must be), and
+# whether it ends by itself). Integers are given for doubles on purpose (fps, px_per_m,
+# steady_threshold): they are taken as doubles.
+CASES = {
+    'simulator': ({'duration': 0.02, 'real_time_factor': 0.0}, 'conditons.slope',
+                  ('conditions.slope', 2.0, '[-1.5708, 1.5708] rad'),
+                  ('real_time_factor', 'fast', 'must be a number in'), True),
+    'camera': ({}, 'jpeg_qualty', ('jpeg_quality', 101, '[1, 100]'),
+               ('width', 'wide', 'must be an integer in'), False),
+    'vision': ({'px_per_m': 1200}, 'plane_distanse', ('plane_distance', 0, '(0, inf) m'),
+               ('px_per_m', 'many', 'must be a number in'), False),
+    'comparison': ({}, 'report_periode', ('steady_threshold', -1, '(0, inf)'),
+                   ('report_period', 'soon', 'must be a number in'), False),
+    'recorder': ({'output': '{tmp}/bag'}, 'queue_dept', ('chunk_size', 0, '[1, inf) bytes'),
+                 ('queue_depth', 1.5, 'must be an integer in'), False),
+    'player': ({'bag': '{bag}', 'rate': 100.0}, 'clock_rat',
+               ('clock_rate', 2e6, '(0, 1e+06] Hz'), ('rate', 'fast', 'must be a number in'),
+               True),
+    'video_source': ({'path': '{frames}', 'fps': 30, 'px_per_m': 1200}, 'px_per_mm',
+                     ('px_per_m', -5, '[0, inf) px/m'), ('loop', 'maybe', 'must be true or false'),
+                     True),
+}
+
+
+def test_every_executable_has_a_row():
+    assert set(CASES) == set(EXECUTABLES)
+
+
+def _start(argv, cwd):
+    return subprocess.Popen(argv, cwd=cwd, env=dict(os.environ), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True)
+
+
+def _finish(proc):
+    try:
+        out = proc.communicate(timeout=TIMEOUT)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    return proc.returncode, out
+
+
+def _filled(params, paths):
+    return {k: v.format(**paths) if isinstance(v, str) else v for k, v in params.items()}
+
+
+@pytest.mark.parametrize('node', sorted(CASES))
+def test_bad_input_ends_the_node_with_one_line(node, tmp_path):
+    ok, _, (low, value, allowed), (name, wrong, kind), _ = CASES[node]
+    paths = {'tmp': tmp_path, 'bag': tmp_path / 'no_bag', 'frames': tmp_path / 'no_frames'}
+    ok = _filled(ok, paths)
+    not_yaml = tmp_path / 'not_yaml.yaml'
+    not_yaml.write_text(f'{node}:\n  ros__parameters: [a, b\n')
+    missing = tmp_path / 'missing.yaml'
+    module = [sys.executable, '-m', f'saw_ros.ros.nodes.{node}']
+    table = {   # case: (argv, texts the one line holds)
+        'out of range': (node_command(node, params=dict(ok, **{low: value})),
+                         (f'{low} = ', 'out of range', f'allowed {allowed}')),
+        'wrong type': (node_command(node, params=dict(ok, **{name: wrong})),
+                       (f'{name} = {wrong!r} is invalid', kind)),
+        'params file missing': (node_command(node, params=ok, params_file=missing),
+                                (f'params file {missing} does not exist',)),
+        'params file not YAML': (node_command(node, params=ok, params_file=not_yaml),
+                                 (f'params file {not_yaml} is not YAML', 'at line')),
+        'unknown argument': (module + ['--frobnicate'], ('unknown argument --frobnicate',
+                                                         '--ros-args')),
+    }
+    procs = {case: _start(argv, tmp_path) for case, (argv, _) in table.items()}
+    for case, proc in procs.items():
+        code, out = _finish(proc)
+        lines = [line for line in out.splitlines() if line.strip()]
+        assert code == 1, (case, out)
+        assert 'Traceback' not in out and len(lines) == 1, (case, out)
+        assert lines[0].startswith('[FATAL]') and f'[{node}]:' in lines[0], (case, lines[0])
+        for text in table[case][1]:
+            assert text in lines[0], (case, text, lines[0])
+    assert not (tmp_path / 'bag').exists()          # the recorder refused before creating it
+
+
+@pytest.mark.parametrize('node', sorted(CASES))
+def test_a_misspelt_parameter_is_named_in_a_warning_and_the_node_runs(node, tmp_path):
+    ok, typo, _, _, ends = CASES[node]
+    paths = {'tmp': tmp_path}
+    if node == 'player':
+        paths['bag'] = _bag(tmp_path / 'src')
+    if node == 'video_source':
+        paths['frames'] = _frames(tmp_path / 'frames')
+    params = dict(_filled(ok, paths), **{typo: 1.0})
+    proc = ManagedProcess(node, node_command(node, params=params), dict(os.environ),
+                          tmp_path / 'logs', cwd=tmp_path)
+    warned = f'[{node}]: unknown parameter ignored: {typo} '
+    if ends:
+        code = proc.wait(TIMEOUT)
+    else:
+        assert wait_for(lambda: warned in proc.output() or proc.returncode is not None,
+                        TIMEOUT), proc.output()
+        code = proc.stop()
+    out = proc.output()
+    assert code == 0, out
+    assert warned in out and 'Traceback' not in out, out
+    if node == 'video_source':      # the integers for px_per_m and fps were taken
+        assert 'published 3 frames (0.100 s of video' in out, out
+        assert 'CameraInfo K is zero' not in out, out
+
+
+def _entries(node):
+    module = importlib.import_module(f'saw_ros.ros.nodes.{node}')
+    return list(module.parameters() if hasattr(module, 'parameters') else module.PARAMETERS)
+
+
+@pytest.mark.parametrize('node', sorted(CASES))
+def test_help_lists_the_parameters_and_starts_nothing(node, tmp_path):
+    work = tmp_path / 'cwd'
+    work.mkdir()
+    flag = '-h' if node in ('camera', 'player', 'vision') else '--help'
+    script = Path(sys.executable).parent / node      # the console script, as ros2 run runs it
+    argv = [str(script)] if node == 'recorder' and script.exists() else \
+        [sys.executable, '-m', f'saw_ros.ros.nodes.{node}']
+    code, out = _finish(_start(argv + [flag], work))
+    assert code == 0, out
+    assert out.startswith(f'usage: {node} '), out
+    assert '[INFO]' not in out and 'Traceback' not in out, out
+    assert list(work.iterdir()) == [], 'a file was written'
+    lines = out.splitlines()
+    for name, default, meta in _entries(node):
+        line = next((x for x in lines if x.startswith(f'  {name}: ')), None)
+        assert line is not None, f'{name} missing from the help:\n{out}'
+        numeric = isinstance(default, (int, float)) and not isinstance(default, bool)
+        if numeric:
+            assert range_text(dict(meta, unit='')) in line, line
+            assert f'default {default!r}' in line, line
+        if meta.get('unit'):
+            assert f'[{meta["unit"]}]' in line, line
+
+
+def test_simulator_help_publishes_nothing(tmp_path, ros_context):
+    """The same subscriber sees a simulator run, and nothing from a simulator asked for help."""
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
+
+    from saw_ros.interface import topics
+    from saw_ros.ros.qos import CLOCK_QOS
+    node = Node('help_listener', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    got = []
+    node.create_subscription(Clock, topics.CLOCK, got.append, CLOCK_QOS)
+    spin = lambda t: executor.spin_once(timeout_sec=t)    # noqa: E731
+    params = {'duration': 3.0, 'real_time_factor': 1.0}
+    try:
+        helped = _start(node_command('simulator', params=params) + ['--help'], tmp_path)
+        code, out = _finish(helped)
+        assert code == 0, out
+        # (a negative: what a running simulator would have published by now, within 2 s)
+        assert not wait_for(lambda: got, 2.0, spin=spin), 'the simulator published'
+        run = _start(node_command('simulator', params=params), tmp_path)
+        assert wait_for(lambda: got, TIMEOUT, spin=spin), 'this subscriber sees nothing'
+        run.terminate()
+        assert _finish(run)[0] == 0
+    finally:
+        executor.shutdown()
+        node.destroy_node()
