@@ -34,13 +34,14 @@ class BagFrames:
         self.reader = BagReader(bag)
         recorded = self.reader.info()['topics']
         candidates = [topic] if topic else [topics.IMAGE_COMPRESSED, topics.IMAGE]
-        self.topic = next((t for t in candidates if t in recorded and recorded[t].count), None)
-        if self.topic is None:
+        chosen = next((t for t in candidates if t in recorded and recorded[t].count), None)
+        if chosen is None:
             found = [t.name for t in recorded.values()
                      if t.type.startswith('sensor_msgs/msg/') and 'Image' in t.type]
             raise BagReadError(f'{bag} holds no frames on {" or ".join(candidates)}; image '
                                f'topics recorded: {", ".join(found) or "none"}')
-        self.count = recorded[self.topic].count
+        self.topic: str = chosen
+        self.count = recorded[chosen].count
 
     def frames(self) -> Iterator[Tuple[int, float, np.ndarray]]:
         """Yield (index, stamp in s, bgr8 frame) of every frame, in the order recorded."""

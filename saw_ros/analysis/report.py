@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Dict
+from typing import Any, Dict, List, Tuple
 
 from saw_ros.bag.reader import BagReader
 from saw_ros.interface import topics
 from saw_ros.vision.camera import FPS
 
 
-def write_report(bag_dir: Path, comparison: Dict[str, object], out_dir: Path) -> Path:
+def write_report(bag_dir: Path, comparison: Dict[str, Any], out_dir: Path) -> Path:
     """
     Write report.png into ``out_dir`` and return its path.
 
@@ -28,12 +28,12 @@ def write_report(bag_dir: Path, comparison: Dict[str, object], out_dir: Path) ->
     import matplotlib.pyplot as plt
     import numpy as np
 
-    truth, tracked = [], []
+    samples: Dict[str, List[Tuple[float, float]]] = {topics.POSE: [], topics.TRACKING_POSE: []}
     reader = BagReader(str(bag_dir))
-    for m, pose in reader.decoded_messages([topics.POSE, topics.TRACKING_POSE]):
+    for m, pose in reader.decoded_messages(list(samples)):
         t = pose.header.stamp.sec + pose.header.stamp.nanosec * 1e-9
-        (truth if m.topic == topics.POSE else tracked).append((t, pose.pose.position.x))
-    truth, tracked = np.array(truth), np.array(tracked)
+        samples[m.topic].append((t, pose.pose.position.x))
+    truth, tracked = np.array(samples[topics.POSE]), np.array(samples[topics.TRACKING_POSE])
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
     c = comparison
     if len(truth):
@@ -72,7 +72,7 @@ def write_report(bag_dir: Path, comparison: Dict[str, object], out_dir: Path) ->
     return path
 
 
-def format_comparison(c: Dict[str, object]) -> str:
+def format_comparison(c: Dict[str, Any]) -> str:
     """Return the comparison node's summary as the lines the demo prints."""
     if c.get('status') != 'steady':
         return f"comparison: {c.get('status', 'no result')}"

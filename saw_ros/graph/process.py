@@ -19,14 +19,14 @@ import subprocess
 import sys
 import tempfile
 import time
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, Dict, IO, List, Optional, Sequence
 
 
 # Domain ids 1-100 keep Fast DDS's port arithmetic valid.
 DOMAIN_IDS = range(1, 101)
 DOMAIN_LOCKS = Path(tempfile.gettempdir()) / 'saw_ros_domains'
 HELD_DOMAINS = 16            # reservations one process keeps before it reuses its oldest
-_held: 'collections.OrderedDict[int, object]' = collections.OrderedDict()
+_held: 'collections.OrderedDict[int, IO[str]]' = collections.OrderedDict()
 
 
 def reserve_domain() -> int:

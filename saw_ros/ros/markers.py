@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import Iterable
+from typing import Iterable, Optional
 
 from geometry_msgs.msg import Point
 import numpy as np
@@ -140,7 +140,7 @@ class Decimator:
 
     def __init__(self, rate: float = RATE):
         self.period = NS_PER_S / rate if rate > 0 else None
-        self._slot = None
+        self._slot: Optional[int] = None
 
     def due(self, stamp_ns: int) -> bool:
         if self.period is None:

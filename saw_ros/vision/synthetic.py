@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import math
 import os
 import tempfile
-from typing import Callable, Iterable, Iterator, List, Optional, Tuple
+from typing import Callable, cast, Iterable, Iterator, List, Optional, Tuple
 
 import numpy as np
 
@@ -191,7 +191,7 @@ def evaluate(run: Run, camera: CameraModel = CameraModel(),
             e = (abs(res.front - front), abs(res.back - back))
             wrong += max(e) > 0.002
             err2 += [e[0] ** 2, e[1] ** 2]
-            pitch_err = max(pitch_err, abs(res.pitch - pose.theta))
+            pitch_err = max(pitch_err, abs(cast(float, res.pitch) - pose.theta))   # ok: measured
     last = results[-1]
     true_speed = run.mean_speed(last.t, config.steady_window)
     speed = last.steady_speed

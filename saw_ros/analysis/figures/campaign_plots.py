@@ -30,13 +30,13 @@ def plot_campaign(results, summary, figure17: Path, figure18: Path,
     for ax, group, along, fits, label, xlabel, title in panels:
         for i, key in enumerate(sorted({getattr(r, group) for r in results})):
             rows = [r for r in results if getattr(r, group) == key]
-            x = [getattr(r, along) for r in rows]
-            ax.plot(x, [100 * r.v_tracked for r in rows], 'o', color=f'C{i}',
+            along_x = [getattr(r, along) for r in rows]
+            ax.plot(along_x, [100 * r.v_tracked for r in rows], 'o', color=f'C{i}',
                     label=label.format(key))
-            ax.plot(x, [100 * r.v_sim for r in rows], 'x', color=f'C{i}', ms=5)
+            ax.plot(along_x, [100 * r.v_sim for r in rows], 'x', color=f'C{i}', ms=5)
             if key in fits:
                 a, b, r2 = fits[key]
-                ax.plot(x, [100 * (a * u + b) for u in x], '-', color=f'C{i}', lw=1,
+                ax.plot(along_x, [100 * (a * u + b) for u in along_x], '-', color=f'C{i}', lw=1,
                         label=f'fit R$^2$={r2:.3f}')
         ax.set_xlabel(xlabel)
         ax.set_ylabel('speed (cm/s): o measured, x simulated')
