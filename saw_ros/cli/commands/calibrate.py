@@ -25,6 +25,7 @@ from pathlib import Path
 import sys
 import time
 
+from saw_ros.analysis.shown import finite, shown
 from saw_ros.cli.checks import number, output_dir, output_file, text_file, YAML_SUFFIXES
 from saw_ros.cli.errors import UserError
 from saw_ros.cli.pool import add_pool_arguments, pool_from_args
@@ -88,6 +89,15 @@ def command_line(args) -> str:
     return ' '.join(parts)
 
 
+def _value(target, value) -> str:
+    """Return a target's model value as the table shows it, or 'no result' (a diverged run)."""
+    return target.display(value) if finite(value) else 'no result'
+
+
+def _loss(value) -> str:
+    return shown(value, '.3e', why='not computed (a run diverged)')
+
+
 def run(args):
     try:
         import cmaes  # noqa: F401  (the optimiser; not a rosdep key, so a ROS install may lack it)
@@ -139,10 +149,15 @@ def run(args):
         for t in d['targets']:
             tg = cal.Target(t['name'], t['slope_deg'], t['quantity'], t['measured'],
                             t['voltage_V'], t['frequency_hz'])
+            failed = 'no result'
             print(f'{t["label"]:28s} {tg.display(t["measured"]):>12s} '
-                  f'{tg.display(t["default"]):>12s} {tg.display(t["calibrated"]):>12s} '
-                  f'{t["error_default_pct"]:5.1f} -> {t["error_calibrated_pct"]:4.1f} %'
+                  f'{_value(tg, t["default"]):>12s} {_value(tg, t["calibrated"]):>12s} '
+                  f'{shown(t["error_default_pct"], "5.1f", why=failed)} -> '
+                  f'{shown(t["error_calibrated_pct"], "4.1f", " %", failed)}'
                   f'{"" if t["informative"] else " (no fitted parameter moves it)"}')
+            if not (finite(t['default']) and finite(t['calibrated'])):
+                print(f'{"":28s} no result: the simulation diverged or the robot did not move '
+                      f'under this condition (outside what the model can run)')
         for p in d['parameters']:
             std = p['relative_std']
             band = f'+-{100 * std:.0f} %' if std is not None else 'unbounded'
@@ -155,14 +170,16 @@ def run(args):
           f'{c["defaults"]["untrained"]} not trained on, calibrated '
           f'{c["calibrated"]["held_untrained"]} of {c["calibrated"]["untrained"]} (not held: '
           f'{", ".join(c["calibrated"]["not_held"]) or "none"})')
-    worse = d['loss'] > d['loss_default']
+    # A loss that could not be computed (a run that diverged) is no better than the start.
+    worse = not d['loss'] <= d['loss_default']
     if args.write_config and worse and not args.write_worse:
         # A "calibrated" file that fits the targets worse than the defaults would replace better
         # parameters without a word; a short run (--quick) can end there.
         more = max(2 * d['generations'], cal.Settings().generations)
         print(f'saw-ros calibrate: did not write {args.write_config}: the best fit is worse than '
               f'the parameters it started from (mean squared relative error '
-              f'{d["loss_default"]:.3e} -> {d["loss"]:.3e} after {d["generations"]} generations);'
+              f'{_loss(d["loss_default"])} -> {_loss(d["loss"])} after {d["generations"]} '
+              f'generations);'
               f' run more generations (saw-ros calibrate --resume {folder} --generations {more})'
               f' or give --write-worse to write it anyway', file=sys.stderr)
         return 1
@@ -172,6 +189,6 @@ def run(args):
         except OSError as exc:
             raise UserError(f'cannot write {args.write_config}: {exc}') from None
         print(f'calibrated parameter file: {path}', file=sys.stderr)
-    print(f'{folder}: loss {d["loss_default"]:.3e} -> {d["loss"]:.3e} after '
+    print(f'{folder}: loss {_loss(d["loss_default"])} -> {_loss(d["loss"])} after '
           f'{d["generations"]} generations of {d["popsize"]}; {elapsed:.1f} s', file=sys.stderr)
     return 0

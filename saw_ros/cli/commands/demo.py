@@ -82,7 +82,9 @@ def run(args):
         print(f'saw-ros demo: nodes failed: {failed}', file=sys.stderr)
         return 1
     if result.comparison.get('status') != 'steady':
-        print('saw-ros demo: the comparison did not reach steady state', file=sys.stderr)
+        print(f'saw-ros demo: the comparison did not reach steady state within the '
+              f'{args.duration:g} s simulated: run longer (--duration {2 * args.duration:g})',
+              file=sys.stderr)
         return 1
     return 0
 
