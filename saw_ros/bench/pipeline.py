@@ -134,7 +134,7 @@ def _missing(stamps: List[int], expected: List[int]) -> int:
 def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     """Return the loss figures of one run (see the module docstring)."""
     from saw_ros.bag import BagReader
-    from saw_ros.ros.cdr import array_stamp_ns, stamp_ns
+    from saw_ros.ros.cdr import array_stamp_ns, header_stamp_ns
     from saw_ros.ros.markers import RATE as MARKER_RATE
     streams = topics.step_topics()  # /clock + 5 streams
     n = int(round(duration / dt))
@@ -157,7 +157,7 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     arrays = (topics.MARKERS, topics.TRACKING_MARKERS)
     for m in reader.messages(wanted):
         stamps.setdefault(m.topic, []).append(
-            array_stamp_ns(m.data) if m.topic in arrays else stamp_ns(m.data))
+            array_stamp_ns(m.data) if m.topic in arrays else header_stamp_ns(m.data))
         log_times.setdefault(m.topic, []).append(m.log_time)
     for _m, msg in reader.decoded_messages([topics.TRACKING_STATUS]):
         values = {kv.key: kv.value for kv in msg.status[0].values}

@@ -35,8 +35,12 @@ def _align(offset: int, size: int) -> int:
     return offset + (-offset % size)
 
 
-def stamp_ns(data: bytes) -> int:
-    """header.stamp in ns of any message that starts with a std_msgs/Header (or is a Clock)."""
+def header_stamp_ns(data: bytes) -> int:
+    """
+    Return header.stamp in ns of serialized bytes that start with a std_msgs/Header (or a Clock).
+
+    (``conversions.stamp_ns`` is the same for a builtin_interfaces/Time message object.)
+    """
     e = _prefix(data)
     sec, nanosec = struct.unpack_from(e + 'iI', data, _HEADER)
     return sec * NS_PER_S + nanosec

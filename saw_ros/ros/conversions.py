@@ -55,6 +55,7 @@ def time_msg(nanoseconds: int, out: Optional[Time] = None) -> Time:
 
 
 def stamp_ns(stamp: Time) -> int:
+    """Return a builtin_interfaces/Time message in ns (``cdr.header_stamp_ns``: from bytes)."""
     return stamp.sec * NS_PER_S + stamp.nanosec
 
 

@@ -55,9 +55,10 @@ def test_pose_stamped_ns_and_stamp_ns():
         t, x, y, theta = cdr.pose_stamped_ns(data)
         assert (t, x, y) == (3_600_999_000_001, 0.1, 0.0225)
         assert math.isclose(theta, -0.3)
-        assert cdr.stamp_ns(data) == t
-    assert cdr.stamp_ns(serialize_message(Clock(clock=conv.time_msg(42_000_000)))) == 42_000_000
-    assert cdr.stamp_ns(conv.clock_cdr(42_000_000)) == 42_000_000
+        assert cdr.header_stamp_ns(data) == t
+    clock = serialize_message(Clock(clock=conv.time_msg(42_000_000)))
+    assert cdr.header_stamp_ns(clock) == 42_000_000
+    assert cdr.header_stamp_ns(conv.clock_cdr(42_000_000)) == 42_000_000
 
 
 def _image(width, height, encoding, frame, ns, step=None):
@@ -114,4 +115,4 @@ def test_restamp_gives_the_message_serialized_with_the_new_stamp():
     before = serialize_message(info)
     conv.time_msg(12_345_678_901, info.header.stamp)
     assert cdr.restamp(before, 12_345_678_901) == serialize_message(info)
-    assert cdr.stamp_ns(cdr.restamp(before, 16_666_667)) == 16_666_667
+    assert cdr.header_stamp_ns(cdr.restamp(before, 16_666_667)) == 16_666_667

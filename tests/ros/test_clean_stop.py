@@ -20,7 +20,7 @@ from saw_ros.bag.reader import BagReader
 from saw_ros.graph.pipeline import RECORDED_TOPICS
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.interface import topics as table
-from saw_ros.ros.cdr import stamp_ns
+from saw_ros.ros.cdr import header_stamp_ns
 from saw_ros.ros.nodes.simulator import TOPICS as SIM_TOPICS
 
 pytestmark = pytest.mark.ros
@@ -135,7 +135,7 @@ def check_bag(bag_dir, steps=None, frames=None, fps=60.0):
     assert reader.metadata['message_count'] == sum(meta.values())
     stamps = {t: [] for t in list(SIM_TOPICS) + [INFO]}
     for m in reader.messages(list(stamps)):
-        stamps[m.topic].append(stamp_ns(m.data))
+        stamps[m.topic].append(header_stamp_ns(m.data))
     missing = {}
     for topic in SIM_TOPICS:
         got = np.array(stamps[topic])
