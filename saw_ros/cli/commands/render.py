@@ -12,7 +12,7 @@ from saw_ros.cli.checks import number, output_file, spec_number, VIDEO_SUFFIXES
 from saw_ros.cli.errors import UserError
 from saw_ros.core import Scenario
 from saw_ros.core.params import ConditionParams, spec_entries
-from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.camera import CameraModel, FPS
 from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.synthetic import simulate_run
 from saw_ros.vision.video import VideoError, VideoWriter
@@ -41,7 +41,7 @@ def add_arguments(p):
     p.add_argument('--slope-deg', type=float, default=0.0, help='slope of the surfaces, deg')
     spec_option(p, ConditionParams, 'gap')
     spec_option(p, ConditionParams, 'frequency')
-    p.add_argument('--fps', type=float, default=60.0, help='frames per second')
+    p.add_argument('--fps', type=float, default=FPS, help=f'frames per second ({FPS:g})')
     spec_option(p, CameraModel, 'scale', '--px-per-m')
     spec_option(p, CameraModel, 'width')
     spec_option(p, CameraModel, 'height')

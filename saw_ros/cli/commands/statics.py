@@ -12,7 +12,7 @@ import math
 
 from saw_ros.cli.checks import number, spec_number
 from saw_ros.cli.errors import UserError
-from saw_ros.core.params import Scenario
+from saw_ros.core.params import RobotParams, Scenario
 
 HELP = 'minimal normal forces and top-surface threshold (paper Eqs. 3-5, Figure 4)'
 
@@ -22,7 +22,8 @@ def add_arguments(p):
     p.add_argument('--fext-mg', type=float, default=None,
                    help='resisting force in units of m g (with --mu: one custom case)')
     p.add_argument('--mu', type=float, default=None, help='coefficient of friction')
-    p.add_argument('--mass', type=float, default=0.313, help='robot mass, kg (for newtons)')
+    p.add_argument('--mass', type=float, default=RobotParams.mass,
+                   help=f'robot mass, kg (for newtons; default {RobotParams.mass:g})')
 
 
 def run(args):

@@ -41,7 +41,7 @@ from saw_ros.ros.qos import image_publisher_qos, INPUT_DEPTH, STREAM_QOS, with_d
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 from saw_ros.vision import compressed, one_opencv_thread
-from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.camera import CameraModel, FPS
 from saw_ros.vision.frames import pose_between, Renderer, RenderOptions, RobotPose, StampedSeries
 from saw_ros.vision.video import VideoError, VideoWriter
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
@@ -65,8 +65,8 @@ _RENDER = {n: (n, d, m) for n, d, m in spec_entries(RenderOptions)}
 PARAMETERS = (
     _CAMERA['width'],
     _CAMERA['height'],
-    ('fps', 60.0, spec_meta('Hz', 'frames per second of simulated time', 0.0, None,
-                            low_open=True)),
+    ('fps', FPS, spec_meta('Hz', 'frames per second of simulated time', 0.0, None,
+                           low_open=True)),
     _described(_CAMERA['scale'], '; used when fov is 0'),
     ('fov', 0.0, spec_meta('rad', 'horizontal field of view; > 0 overrides scale', 0.0, None)),
     _CAMERA['distance'],
