@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from concurrent.futures import CancelledError
 import importlib.util
+import logging
 import threading
 import time
 from typing import Callable, Iterable, Iterator, Optional
@@ -47,7 +48,14 @@ class DaskPool:
         except ValueError as exc:
             raise PoolError(f'{address!r} is not a Dask scheduler address such as '
                             f'tcp://host:8786 ({_one_line(exc)})') from None
-        self.client = _connect(distributed, address, timeout)
+        # The client's reconnection attempts log tracebacks at ERROR once the scheduler is
+        # gone; what went wrong is said in one PoolError instead. Restored on close().
+        self._quiet = _Quiet(('distributed.client', 'distributed.comm', 'distributed.core'))
+        try:
+            self.client = _connect(distributed, address, timeout)
+        except BaseException:
+            self._quiet.restore()
+            raise
         try:
             self.workers = self._threads()
             if not self.workers:
@@ -59,7 +67,7 @@ class DaskPool:
                 self.workers = self._threads()
             self.check_workers()
         except BaseException:
-            self.client.close()
+            self.close()
             raise
 
     def __repr__(self) -> str:
@@ -118,8 +126,8 @@ class DaskPool:
             except (DaskTimeout, TimeoutError):
                 pass
             except (CancelledError, OSError) as exc:   # CommClosedError is an OSError
-                raise PoolError(f'lost the Dask scheduler at {self.address} mid-run '
-                                f'({_one_line(exc) or type(exc).__name__})') from None
+                raise PoolError(f'lost the Dask scheduler at {self.address} mid-run (the '
+                                f'connection closed: {type(exc).__name__})') from None
             if self.client.status == 'running':
                 unreachable = None
             elif unreachable is None:
@@ -130,13 +138,31 @@ class DaskPool:
 
     def close(self) -> None:
         """Disconnect (the cluster keeps running)."""
-        self.client.close()
+        try:
+            self.client.close(timeout=self.timeout)
+        except Exception:  # noqa: BLE001  (the scheduler is gone: nothing to close)
+            pass
+        finally:
+            self._quiet.restore()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class _Quiet:
+    """Loggers raised to CRITICAL until ``restore()``."""
+
+    def __init__(self, names):
+        self._levels = {name: logging.getLogger(name).level for name in names}
+        for name in names:
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+
+    def restore(self) -> None:
+        for name, level in self._levels.items():
+            logging.getLogger(name).setLevel(level)
 
 
 def _connect(distributed, address: str, timeout: float):
