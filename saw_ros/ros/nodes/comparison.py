@@ -15,7 +15,9 @@ would only hide a typo (leave the parameter out, or empty, to run without refere
 
 The run's conditions (robot geometry for v_theory, frequency or voltage, slope) are read from the
 simulator node's own parameters and followed on /parameter_events, so that the comparison always
-uses what the simulator runs. The math lives in saw_ros.analysis.compare.
+uses what the simulator runs. The math lives in saw_ros.analysis.compare. Memory stays bounded on
+a run of any length: the comparator keeps the last 60 s of simulated time (``KEEP_S``), where it
+finds the steady window; a longer run is compared over its last 60 s at most.
 """
 from __future__ import annotations
 
