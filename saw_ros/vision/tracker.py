@@ -77,6 +77,7 @@ import numpy as np
 
 from saw_ros.core.params import spec
 from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.egomotion import apply, CameraMotion
 
 
 class TrackStatus(StrEnum):
@@ -87,6 +88,7 @@ class TrackStatus(StrEnum):
     BACK_LOST = 'back lost'
     BOTH_LOST = 'both lost'
     AMBIGUOUS = 'ambiguous'
+    PARTIAL = 'partial'         # a marker partly hidden (or cut): its centre is not measured
 
 
 MARKERS = ('front', 'back')
@@ -95,8 +97,21 @@ SIZE_RATIO = 2.5          # largest area ratio of the two markers (or of a marke
 MERGED = 1.5              # a blob this much larger than the tracked marker holds something else
 PARTIAL = 0.5             # ... this much smaller: the marker is mostly hidden
 CLEAR_MARGIN = 0.25       # acquisition: the best pair's cost must beat the next by this much
-MOTION_FRAMES = 600       # acquisition: longest history over which candidates' motion counts
+MOTION_FRAMES = 30        # acquisition: frames over which candidates' motion counts
+ACQUIRE_FRAMES = 6        # ... a moving pair must have been seen together this many frames
 MIN_MOTION = 4.0          # px along the marker line to count as moving
+RIGID_PX = 1.5            # ... and keep its spacing within this (plus 1 %) meanwhile
+MOTION_ANGLE = math.radians(25.0)   # ... moving along its own line within this
+PARTIAL_AREA = 0.85       # tracking: a marker below this fraction of its size is partly hidden
+# ... or less round than it was by this much (a full disc: 0.92-1; with noise, blur, lens and
+# JPEG 70, down by 0.11 at worst; cut by an edge so that its centroid moves 0.6 px: 0.74-0.8
+# instead of 0.96)
+PARTIAL_ROUND = 0.13
+ROUND_MIN = 0.6           # acquisition: least roundness (smaller / larger second moment)
+DIRECTION_PX = 40.0       # travel (px) before the track's direction is taken from the motion
+SLOPE_WARN = math.radians(2.0)     # a given slope this far from the motion is warned about
+ZOOM_WARN = 0.01          # the picture's scale changing by this much is warned about
+ROLL_WARN = math.radians(0.5)      # ... its roll by this much
 SPACING_PX = 3.0          # tracking: the marker spacing may change by max(this, ...)
 SPACING_FRACTION = 0.02   # ... this fraction of it from frame to frame
 LEARN = 0.1               # weight of each ok frame in the learned spacing, area and colour
@@ -149,6 +164,9 @@ class TrackerConfig:
     colour_tolerance: float = spec(0.2, '', 'largest difference of colour (B - G) / (R - G) '
                                             'between the markers and from frame to frame', 0.0,
                                    None, low_open=True)
+    colour_min: float = spec(0.25, '', 'acquisition: least colour (B - G) / (R - G) of a marker '
+                                       '(red and shadowed red 0-0.2, crimson 0.2, pinks 0.3-0.8, '
+                                       'magenta 1)')
     com_offset_x: float = spec(0.0, 'm', 'COM minus marker midpoint along the back->front line')
     com_offset_y: float = spec(0.0, 'm', 'COM minus marker midpoint normal to that line')
     marker_line_angle: float = spec(0.0, 'rad', 'angle of the back->front line in the body frame')
@@ -211,6 +229,7 @@ class Candidate:
     weight: float     # summed pinkness
     area: float = 0.0       # px above 30 % of the peak
     colour: float = 0.0     # (B - G) / (R - G) over those pixels
+    roundness: float = 1.0  # smaller / larger principal second moment: 1 for a disc
     q: Optional[complex] = None   # ideal (undistorted) pixel position, set by the tracker
 
     @property
@@ -248,12 +267,20 @@ def _ls_slope(t: np.ndarray, y: np.ndarray) -> float:
     return float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
 
 
+def shrink(image: np.ndarray, factor: int) -> np.ndarray:
+    """Return the image shrunk by ``factor`` as detection does it (bilinear)."""
+    h, w = image.shape[:2]
+    return cv2.resize(image, (w // factor, h // factor), interpolation=cv2.INTER_LINEAR) \
+        if factor > 1 else image
+
+
 def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
-           encoding: str = 'bgr8') -> List[Candidate]:
+           encoding: str = 'bgr8', small: Optional[np.ndarray] = None) -> List[Candidate]:
     """
     Pink blobs in a BGR (or RGB) uint8 image with sub-pixel centroids.
 
-    (image pixels), area and colour; heaviest first.
+    (image pixels), area, colour and roundness; heaviest first. ``small``: the whole image
+    already shrunk (``shrink``), when there is no region of interest.
     """
     if image is None or image.ndim != 3 or image.shape[2] != 3:
         raise ValueError('detect needs an HxWx3 colour image')
@@ -270,8 +297,8 @@ def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
     h, w = image.shape[:2]
     if w // s < 3 or h // s < 3:
         return []
-    small = cv2.resize(image, (w // s, h // s), interpolation=cv2.INTER_LINEAR) if s > 1 \
-        else image
+    if small is None or config.roi is not None:
+        small = shrink(image, s)
     sh, sw = small.shape[:2]
     hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV if encoding == 'bgr8' else cv2.COLOR_RGB2HSV)
     lo, hi = config.hue_min, config.hue_max
@@ -326,11 +353,19 @@ def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
                 continue
             uu = np.arange(u0 + ox, u1 + ox, dtype=np.float64)
             vv = np.arange(v0 + oy, v1 + oy, dtype=np.float64)
-            u = float(weight.sum(axis=0) @ uu) / total
-            v = float(weight.sum(axis=1) @ vv) / total
+            wu, wv = weight.sum(axis=0), weight.sum(axis=1)
+            u = float(wu @ uu) / total
+            v = float(wv @ vv) / total
+            # Second moments: a disc's are equal; a marker partly hidden is a cut disc.
+            du, dv = uu - u, vv - v
+            suu, svv = float(wu @ (du * du)) / total, float(wv @ (dv * dv)) / total
+            suv = float(dv @ weight @ du) / total
+            root = math.sqrt(max(0.25 * (suu - svv) ** 2 + suv * suv, 0.0))
+            big, low = 0.5 * (suu + svv) + root, 0.5 * (suu + svv) - root
             rg_sum = float(rg[in_blob].sum())
             colour = float(bg[in_blob].sum()) / rg_sum if rg_sum > 0 else math.inf
-            found.append(Candidate(u, v, total, float(n_core), colour))
+            found.append(Candidate(u, v, total, float(n_core), colour,
+                                   max(low, 0.0) / big if big > 0 else 0.0))
     # Merge fragments of one marker: keep the heaviest.
     found.sort(key=lambda c: -c.weight)
     merged: List[Candidate] = []
@@ -363,6 +398,7 @@ class Counters:
     front_lost: int = 0
     back_lost: int = 0
     ambiguous: int = 0
+    partial: int = 0                  # frames with a marker partly hidden (not measured)
     consecutive_not_ok: int = 0
     longest_not_ok: int = 0
     acquisitions: int = 0             # times the pair was (re)acquired
@@ -373,26 +409,48 @@ def _learn(old: Optional[float], new: float) -> float:
 
 
 class Tracker:
-    """Feed frames in time order with ``update(image, t)``; read ``FrameResult``s back."""
+    """
+    Feed frames in time order with ``update(image, t)``; read ``FrameResult``s back.
+
+    ``slope_known``: the camera's slope is the track's (given by the user); False: the track's
+    direction is taken from the markers' own motion (``slope_used``), the camera's slope being a
+    first guess only. ``warnings`` says what makes the numbers doubtful, ``notes`` what was done.
+    """
 
     def __init__(self, camera: CameraModel, config: TrackerConfig = TrackerConfig(),
-                 encoding: str = 'bgr8'):
+                 encoding: str = 'bgr8', slope_known: bool = True):
         self.camera, self.config, self.encoding = camera, config, encoding
+        self.slope_known = slope_known
         self.counters = Counters()
+        self.motion = CameraMotion(config.downscale)
         self._tracks = {'front': _Track(), 'back': _Track()}
         self._both_lost = 0
         keep = max(config.steady_window, config.smooth_window) + 1.0
         self._keep = keep
-        self._history: Deque[Tuple[float, float, float, float]] = deque()   # t, x, y, pitch
+        # t, x, y, pitch: positions in the frame of the camera's slope (the surface frame when
+        # the slope is known), turned by self._turn on output
+        self._history: Deque[Tuple[float, float, float, float]] = deque()
+        self._turn = 0.0                # rad: track direction in that frame (0: the slope's)
+        self._direction: Optional[float] = None     # rad, the markers' motion in that frame
         self._last_t: Optional[float] = None
-        # What is known of the markers: given, or learned on ok frames.
+        self._last_px: Optional[Tuple[complex, complex]] = None    # last ok frame's markers
+        self._switches = 0              # static pairs dropped for a moving one
+        self._seen_moving = False       # a pair has been seen moving: no static pair after it
+        self.switched_at: Optional[float] = None    # when a static pair was last dropped
+        self._forget()
+
+    def _forget(self) -> None:
+        """Forget what was learned of the markers (spacing, vector, size, colour, motion)."""
         self._spacing: Optional[float] = None           # px (ideal) between the markers
         self._vector: Optional[complex] = None          # last back->front vector, px
         self._area: Dict[str, Optional[float]] = {'front': None, 'back': None}
         self._colour: Dict[str, Optional[float]] = {'front': None, 'back': None}
+        self._round: Dict[str, Optional[float]] = {'front': None, 'back': None}
         self._chains: List[Tuple[complex, Deque[complex]]] = []     # acquisition: motion
-        self._given_area = None if config.marker_diameter is None else \
-            math.pi * (0.5 * config.marker_diameter * camera.scale) ** 2
+        self._confirmed = False         # the tracked pair has been seen moving
+        self._locked_at: Optional[Tuple[complex, complex]] = None
+        self._given_area = None if self.config.marker_diameter is None else \
+            math.pi * (0.5 * self.config.marker_diameter * self.camera.scale) ** 2
 
     @property
     def last_time(self) -> Optional[float]:
@@ -412,6 +470,67 @@ class Tracker:
         """Return the marker spacing in ideal pixels tracked so far (None before acquisition)."""
         return self._spacing
 
+    @property
+    def slope_used(self) -> Optional[float]:
+        """Return the track's slope in the picture, rad (None: not known yet)."""
+        if not self.slope_known and self._direction is None:
+            return None
+        return self.camera.slope + self._turn
+
+    @property
+    def motion_slope(self) -> Optional[float]:
+        """Return the direction of the markers' motion in the picture, rad (None: too short)."""
+        return None if self._direction is None else self.camera.slope + self._direction
+
+    @property
+    def warnings(self) -> List[str]:
+        """Return what makes the positions or speeds doubtful, one line each (empty: nothing)."""
+        out = []
+        m = self.motion
+        if m.moving:
+            zoom = m.zoom_range[1] / m.zoom_range[0] - 1.0
+            if zoom > ZOOM_WARN:
+                out.append(f"the picture's scale changed by {100 * zoom:.1f} % during the clip "
+                           '(zoom, or the camera moved towards the scene): positions and speeds '
+                           'are off by up to as much')
+            roll = m.roll_range[1] - m.roll_range[0]
+            if roll > ROLL_WARN:
+                out.append(f'the camera rolled by {math.degrees(roll):.1f} deg during the clip '
+                           "(compensated; the slope is the first picture's)")
+        if m.failed > 0.05 * max(self.counters.frames, 1):
+            out.append(f"the camera's motion could not be measured on {m.failed} frames (too "
+                       'little texture in the background): positions there may hold it')
+        if self.slope_known and self._direction is not None and \
+                abs(self._direction) > SLOPE_WARN:
+            given = math.degrees(self.camera.slope)
+            moved = math.degrees(self.camera.slope + self._direction)
+            low = 100.0 * (1.0 - math.cos(self._direction))
+            out.append(f'the markers move at {moved:.1f} deg in the picture, not along the given '
+                       f'slope {given:.1f} deg: speeds along it read {low:.1f} % low (give the '
+                       "right --slope-deg, or leave it out to take the motion's)")
+        if self.initialised and not self._confirmed and self.counters.ok:
+            out.append('the pair tracked has not moved: a robot at rest, or two pink things '
+                       'that are not its markers (nothing else pink moved as a pair)')
+        if not self.slope_known and self._direction is None and self.counters.ok:
+            out.append(f'the track direction is not known: the markers did not move '
+                       f'{DIRECTION_PX:g} px (no steady speed without --slope-deg)')
+        return out
+
+    @property
+    def notes(self) -> List[str]:
+        """Return what the tracker did that the numbers depend on, one line each."""
+        out = []
+        if self.motion.moving:
+            out.append(f'camera motion: the picture moved up to {self.motion.largest_shift:.0f} '
+                       "px; markers measured in the scene's frame")
+        slope = self.slope_used
+        if not self.slope_known and slope is not None:
+            out.append(f"slope: {math.degrees(slope):.2f} deg, from the markers' motion")
+        if self._switches:
+            out.append(f'acquisition: a static pair was dropped for a moving one at '
+                       f"t = {self.switched_at:.3f} s: the frames before are not the robot's")
+        return out
+
     def move_camera(self, camera: CameraModel) -> None:
         """
         Return the camera moved parallel to the plane of motion.
@@ -429,7 +548,16 @@ class Tracker:
         self.camera = camera
 
     def reset(self) -> None:
-        self.__init__(self.camera, self.config, self.encoding)
+        self.__init__(self.camera, self.config, self.encoding, self.slope_known)
+
+    # -- geometry ------------------------------------------------------------------------------
+    def _to_surface(self, q) -> complex:
+        """Scene-frame ideal pixels -> surface frame (the slope turned by what the motion says)."""
+        p = complex(self.camera.to_surface(q))
+        if self._turn:
+            c = complex(self.camera.center_x, self.camera.center_y)
+            p = c + (p - c) * complex(math.cos(self._turn), -math.sin(self._turn))
+        return p
 
     # -- acquisition ---------------------------------------------------------------------------
     def _expected_spacing(self) -> Optional[float]:
@@ -437,15 +565,14 @@ class Tracker:
             return self.config.marker_spacing * self.camera.scale
         return self._spacing
 
-    def _motions(self, cands: List[Candidate]) -> List[Optional[complex]]:
+    def _motions(self, cands: List[Candidate]) -> List[Deque[complex]]:
         """
-        Each candidate's displacement since it was first seen.
+        Each candidate's recent positions (scene frame), up to MOTION_FRAMES frames back.
 
-        (up to MOTION_FRAMES frames back; None when new): candidates are chained to the nearest of
-        the previous frame's.
+        Candidates are chained to the nearest of the previous frame's.
         """
         free = list(range(len(self._chains)))
-        chains, motions = [], []
+        chains, hists = [], []
         for c in cands:
             best, best_d = None, self.config.gate
             for k in free:
@@ -459,29 +586,79 @@ class Tracker:
                 hist = self._chains[best][1]
             hist.append(c.q)
             chains.append((c.q, hist))
-            motions.append(hist[-1] - hist[0] if len(hist) > 1 else None)
+            hists.append(hist)
         self._chains = chains
-        return motions
+        return hists
 
-    def _acquire(self, cands: List[Candidate]):
-        """{'front': Candidate or None, 'back': ...} and whether it was ambiguous."""
+    def _marker_like(self, c: Candidate) -> float:
+        """Return the candidate's cost as a marker alone (> 1: not a marker)."""
+        if not c.colour >= self.config.colour_min or c.roundness < ROUND_MIN:
+            return math.inf
+        if self._given_area is None:
+            return 0.0
+        return (math.log(max(c.area, 1.0) / self._given_area) / math.log(SIZE_RATIO)) ** 2
+
+    def _pair_cost(self, ca: Candidate, cb: Candidate, d: float, spacing) -> Optional[float]:
+        """Return the cost of two candidates as the two markers (None: they are not)."""
+        size = math.log(max(ca.area, 1.0) / max(cb.area, 1.0)) / math.log(SIZE_RATIO)
+        colour = (ca.colour - cb.colour) / self.config.colour_tolerance
+        if abs(size) > 1.0 or not abs(colour) <= 1.0 or d < 2.0 * self.config.merge_distance:
+            return None
+        cost = size ** 2 + colour ** 2
+        if spacing is not None:
+            dev = (d - spacing) / (self.config.spacing_tolerance * spacing)
+            if abs(dev) > 1.0:
+                return None
+            cost += dev ** 2
+        return cost
+
+    def _moving_pairs(self, cands, hists, single) -> List[Tuple[float, int, int]]:
+        """
+        Return the pairs (cost, front, back) that move together as one rigid body.
+
+        Along their own line, for ACQUIRE_FRAMES frames or more: the robot. The front is the
+        marker ahead along the track when its slope is known, else along the motion.
+        """
+        # (A spacing learned on a pair that never moved may be the wrong pair's.)
+        spacing = self._expected_spacing() if self._confirmed or \
+            self.config.marker_spacing is not None else None
+        out = []
+        track = complex(math.cos(self.camera.slope), -math.sin(self.camera.slope))
+        if self.camera.mirror:
+            track = -track.conjugate()
+        for a in range(len(cands)):
+            if single[a] > 1.0 or len(hists[a]) < ACQUIRE_FRAMES:
+                continue
+            for b in range(a + 1, len(cands)):
+                if single[b] > 1.0 or len(hists[b]) < ACQUIRE_FRAMES:
+                    continue
+                n = min(len(hists[a]), len(hists[b]))
+                pa = np.array(hists[a])[-n:]
+                pb = np.array(hists[b])[-n:]
+                dist = np.abs(pa - pb)
+                if dist.max() - dist.min() > RIGID_PX + 0.01 * dist.mean():
+                    continue
+                move = 0.5 * (pa[-1] + pb[-1] - pa[0] - pb[0])
+                line = pa[-1] - pb[-1]
+                along = (move * line.conjugate()).real / abs(line)
+                if abs(along) < MIN_MOTION or abs(along) < math.cos(MOTION_ANGLE) * abs(move):
+                    continue
+                cost = self._pair_cost(cands[a], cands[b], float(dist[-1]), spacing)
+                if cost is None:
+                    continue
+                ahead = (line * track.conjugate()).real if self.slope_known else along
+                front, back = (a, b) if ahead > 0 else (b, a)
+                out.append((cost + single[a] + single[b], front, back))
+        out.sort()
+        return out
+
+    def _static_pair(self, cands, single):
+        """Return the old rule: the clearly cheapest pair on the track's line, or None."""
         cfg = self.config
-        none = {'front': None, 'back': None}
-        cands = cands[:MAX_PAIR_CANDIDATES]
-        motions = self._motions(cands)
-        if len(cands) < 2:
-            return none, False
         q = np.array([c.q for c in cands])
         surface = self.camera.to_surface(q) * complex(math.cos(cfg.marker_line_angle),
                                                       -math.sin(cfg.marker_line_angle))
         spacing = self._expected_spacing()
-        log_ratio = math.log(SIZE_RATIO)
-        single = []
-        for c in cands:
-            cost = 0.0
-            if self._given_area is not None:
-                cost = (math.log(max(c.area, 1.0) / self._given_area) / log_ratio) ** 2
-            single.append(cost)
         pairs = []
         for a, ca in enumerate(cands):
             if single[a] > 1.0:
@@ -493,46 +670,74 @@ class Tracker:
                 angle = math.atan2(line.imag, line.real) / cfg.max_pitch
                 if abs(angle) > 1.0:        # also refuses the pair in the wrong order
                     continue
-                d = abs(q[a] - q[b])
-                if d < 2.0 * cfg.merge_distance:
-                    continue
-                size = math.log(max(ca.area, 1.0) / max(cb.area, 1.0)) / log_ratio
-                colour = (ca.colour - cb.colour) / cfg.colour_tolerance
-                if abs(size) > 1.0 or not abs(colour) <= 1.0:
-                    continue
-                cost = angle ** 2 + size ** 2 + colour ** 2 + single[a] + single[b]
-                if spacing is not None:
-                    dev = (d - spacing) / (cfg.spacing_tolerance * spacing)
-                    if abs(dev) > 1.0:
-                        continue
-                    cost += dev ** 2
-                pairs.append((cost, a, b))
+                cost = self._pair_cost(ca, cb, abs(q[a] - q[b]), spacing)
+                if cost is not None:
+                    pairs.append((cost + angle ** 2 + single[a] + single[b], a, b))
         if not pairs:
-            return none, False
+            return None, False
         pairs.sort()
         close = [p for p in pairs if p[0] < pairs[0][0] + CLEAR_MARGIN]
-        if len(close) > 1:
-            close = [p for p in close if self._rigid_moving(q, motions, p[1], p[2])]
-            if len(close) != 1:
+        return (close[0] if len(close) == 1 else None), len(close) > 1
+
+    def _acquire(self, cands: List[Candidate], hists):
+        """
+        {'front': Candidate or None, 'back': ...} and whether it was ambiguous.
+
+        A pair moving rigidly along its line is taken first; a static pair (the clearly cheapest
+        on the track's line) only while no candidate moves, with the slope known, and before any
+        pair was seen moving (once the robot moved, something static is not the robot).
+        """
+        none = {'front': None, 'back': None}
+        if len(cands) < 2:
+            return none, False
+        single = [self._marker_like(c) for c in cands]
+        moving = self._moving_pairs(cands, hists, single)
+        if moving:
+            close = [p for p in moving if p[0] < moving[0][0] + CLEAR_MARGIN]
+            if len(close) > 1:
                 return none, True
-        _, a, b = close[0]
-        self._chains = []
+            _, a, b = moving[0]
+            self._confirmed = self._seen_moving = True
+        else:
+            still = all(abs(h[-1] - h[0]) < MIN_MOTION for h in hists)
+            if not (self.slope_known and still and not self._seen_moving):
+                # Something pink moves (or the track's direction is unknown): wait for a pair
+                # that moves as the robot does.
+                return none, sum(cost <= 1.0 for cost in single) >= 2
+            pair, ambiguous = self._static_pair(cands, single)
+            if pair is None:
+                return none, ambiguous
+            _, a, b = pair
         self.counters.acquisitions += 1
+        self._locked_at = (cands[a].q, cands[b].q)
         return {'front': cands[a], 'back': cands[b]}, False
 
-    @staticmethod
-    def _rigid_moving(q, motions, a: int, b: int) -> bool:
-        """Whether candidates a and b moved together along their line (a rigid body moving)."""
-        ma, mb = motions[a], motions[b]
-        if ma is None or mb is None:
-            return False
-        # (Both chains may not reach equally far back; a rigid pair seen since different frames
-        # then differs by the motion in between, and is taken a little later.)
-        line = (q[a] - q[b]) / abs(q[a] - q[b])
-        along_a = (ma * line.conjugate()).real
-        along_b = (mb * line.conjugate()).real
-        moved = min(abs(along_a), abs(along_b))
-        return moved >= MIN_MOTION and abs(along_a - along_b) <= 1.5 + 0.1 * moved
+    def _check_lock(self, cands, hists, found) -> Optional[dict]:
+        """
+        Confirm a pair locked while static once it moves, or drop it for a moving pair.
+
+        Returns the moving pair to take instead, or None.
+        """
+        f, b = found['front'], found['back']
+        if f is not None and b is not None and self._locked_at is not None and \
+                min(abs(f.q - self._locked_at[0]), abs(b.q - self._locked_at[1])) >= MIN_MOTION:
+            self._confirmed = self._seen_moving = True
+            self._chains = []
+            return None
+        single = [self._marker_like(c) for c in cands]
+        moving = [p for p in self._moving_pairs(cands, hists, single)
+                  if cands[p[1]] is not f and cands[p[2]] is not b]
+        if len(moving) != 1 and not (moving and moving[1][0] >= moving[0][0] + CLEAR_MARGIN):
+            return None
+        _, a, bb = moving[0]
+        self._switches += 1
+        self.switched_at = self._last_t
+        self._forget()
+        self._history.clear()
+        self._tracks = {'front': _Track(), 'back': _Track()}
+        self._confirmed = self._seen_moving = True
+        self.counters.acquisitions += 1
+        return {'front': cands[a], 'back': cands[bb]}
 
     # -- tracking ------------------------------------------------------------------------------
     def _predict(self, t: float) -> Dict[str, complex]:
@@ -546,7 +751,7 @@ class Tracker:
         return {'front': pf, 'back': pb}
 
     def _track(self, cands: List[Candidate], t: float):
-        """{'front': Candidate or None, 'back': ...} and whether it was ambiguous."""
+        """{'front': Candidate or None, 'back': ...}, whether it was ambiguous, partial markers."""
         cfg = self.config
         gate = cfg.gate
         pred = self._predict(t)
@@ -579,6 +784,7 @@ class Tracker:
         found = {'front': None if i is None else cands[i],
                  'back': None if j is None else cands[j]}
         ambiguous = False
+        partial = []
         margin = 0.5 * cfg.merge_distance
         for slot, name in ((1, 'front'), (2, 'back')):
             chosen = options[0][slot]
@@ -590,23 +796,53 @@ class Tracker:
             if rival or (area is not None and cands[chosen].area > MERGED * area):
                 found[name] = None
                 ambiguous = True
-        return found, ambiguous
+            elif area is not None and (cands[chosen].area < PARTIAL_AREA * area or
+                                       cands[chosen].roundness <
+                                       self._round[name] - PARTIAL_ROUND):
+                # Partly hidden: the visible part's centroid is not the marker's centre.
+                found[name] = None
+                partial.append(name)
+        return found, ambiguous, partial
 
     # -- per frame -----------------------------------------------------------------------------
+    def _camera_motion(self, image: np.ndarray, small: np.ndarray) -> np.ndarray:
+        masks = []
+        if self._last_px is not None:
+            f, b = self._last_px
+            along = f - b
+            masks.append((b - 0.2 * along, f + 0.2 * along, 0.2 * abs(along) + 10.0))
+        transform = self.motion.update(small, image.shape[1], image.shape[0], masks)
+        return self.motion.transform if transform is None else transform
+
     def update(self, image: Optional[np.ndarray], t: float) -> FrameResult:
         cfg = self.config
         if self._last_t is not None and t <= self._last_t:
             raise ValueError(f'frame time {t} is not after the previous one {self._last_t}')
         self._last_t = t
-        cands = detect(image, cfg, self.encoding) if image is not None else []
-        if cands:
-            ideal = self.camera.undistort(np.array([c.p for c in cands]))
-            for c, q in zip(cands, ideal):
-                c.q = complex(q)
+        cands: List[Candidate] = []
+        if image is not None:
+            if image.ndim != 3 or image.shape[2] != 3:
+                raise ValueError('detect needs an HxWx3 colour image')
+            small = shrink(image, cfg.downscale)
+            cands = detect(image, cfg, self.encoding, small)
+            to_scene = self._camera_motion(image, small)
+            if cands:
+                ideal = self.camera.undistort(np.array([c.p for c in cands]))
+                if self.motion.moving:
+                    ideal = apply(to_scene, ideal)
+                for c, q in zip(cands, ideal):
+                    c.q = complex(q)
+        partial: List[str] = []
+        hists = self._motions(cands) if not (self.initialised and self._confirmed) else None
         if self.initialised:
-            found, ambiguous = self._track(cands, t)
+            found, ambiguous, partial = self._track(cands, t)
+            if not self._confirmed:
+                switch = self._check_lock(cands, hists, found)
+                if switch is not None:
+                    found, ambiguous, partial = switch, False, []
+                    self._locked_at = (switch['front'].q, switch['back'].q)
         else:
-            found, ambiguous = self._acquire(cands)
+            found, ambiguous = self._acquire(cands, hists)
         c = self.counters
         c.frames += 1
         res = FrameResult(t=t, status=TrackStatus.OK, candidates=len(cands))
@@ -617,16 +853,21 @@ class Tracker:
             self._tracks[name].update(cand.q, t)
             self._area[name] = _learn(self._area[name], cand.area)
             self._colour[name] = _learn(self._colour[name], cand.colour)
+            self._round[name] = _learn(self._round[name], cand.roundness)
             setattr(res, f'{name}_px', cand.p)
-            setattr(res, name, complex(self.camera.to_surface(cand.q)))
+            setattr(res, name, self._to_surface(cand.q))
         if found['front'] is not None and found['back'] is not None:
             self._vector = found['front'].q - found['back'].q
             res.spacing_px = abs(self._vector)
             self._spacing = _learn(self._spacing, res.spacing_px)
+            self._last_px = (found['front'].p, found['back'].p)
         lost = [name for name in MARKERS if found[name] is None]
         if ambiguous:
             res.status = TrackStatus.AMBIGUOUS
             c.ambiguous += 1
+        elif partial:
+            res.status = TrackStatus.PARTIAL
+            c.partial += 1
         elif lost:
             res.status = (TrackStatus.BOTH_LOST if len(lost) == 2 else
                           TrackStatus.FRONT_LOST if lost == ['front'] else TrackStatus.BACK_LOST)
@@ -635,8 +876,10 @@ class Tracker:
         if len(lost) == 2:
             self._both_lost += 1
             if self._both_lost >= cfg.reacquire_after and self.initialised:
+                # The lock is lost: what was learned of that pair (perhaps the wrong one) goes.
                 self._tracks = {'front': _Track(), 'back': _Track()}
-                self._vector = None
+                self._forget()
+                self._last_px = None
         else:
             self._both_lost = 0
         if res.status is not TrackStatus.OK:
@@ -645,36 +888,54 @@ class Tracker:
             return res
         c.consecutive_not_ok = 0
         c.ok += 1
-        line = res.front - res.back
-        pitch = math.atan2(line.imag, line.real) - cfg.marker_line_angle
-        res.pitch = pitch
-        res.position = 0.5 * (res.front + res.back) + complex(math.cos(pitch), math.sin(pitch)) \
+        # In the frame of the camera's slope first (the history's), turned on output.
+        front0 = complex(self.camera.to_surface(found['front'].q))
+        back0 = complex(self.camera.to_surface(found['back'].q))
+        line = front0 - back0
+        pitch0 = math.atan2(line.imag, line.real) - cfg.marker_line_angle
+        position0 = 0.5 * (front0 + back0) + complex(math.cos(pitch0), math.sin(pitch0)) \
             * complex(cfg.com_offset_x, cfg.com_offset_y)
-        self._speeds(res)
+        self._speeds(res, position0, pitch0)
         return res
 
-    def _speeds(self, res: FrameResult) -> None:
+    def _speeds(self, res: FrameResult, position0: complex, pitch0: float) -> None:
         cfg = self.config
         hist = self._history
-        if hist and res.t - hist[-1][0] <= cfg.max_step_gap:
-            t0, x0, y0, p0 = hist[-1]
-            dt = res.t - t0
-            res.velocity = complex((res.position.real - x0) / dt, (res.position.imag - y0) / dt)
-            res.pitch_rate = (res.pitch - p0) / dt
-        hist.append((res.t, res.position.real, res.position.imag, res.pitch))
+        prev = hist[-1] if hist and res.t - hist[-1][0] <= cfg.max_step_gap else None
+        hist.append((res.t, position0.real, position0.imag, pitch0))
         while hist and hist[0][0] < res.t - self._keep:
             hist.popleft()
         arr = np.array(hist)
         t = arr[:, 0] - res.t
+        if len(hist) >= 3:
+            # The markers' own direction of motion, over the history (the wave's ripple and the
+            # pitching average out): the track's direction when the slope is not given.
+            v = complex(_ls_slope(t, arr[:, 1]), _ls_slope(t, arr[:, 2]))
+            if abs(v) * (t[-1] - t[0]) * self.camera.scale >= DIRECTION_PX:
+                self._direction = math.atan2(v.imag, v.real)
+                if not self.slope_known:
+                    self._turn = self._direction
+        turn = complex(math.cos(self._turn), -math.sin(self._turn))
+        c = complex(self.camera.center_x, self.camera.center_y)
+        res.pitch = pitch0 - self._turn
+        res.position = c + (position0 - c) * turn
+        if prev is not None:
+            t0, x0, y0, p0 = prev
+            dt = res.t - t0
+            res.velocity = complex((position0.real - x0) / dt,
+                                   (position0.imag - y0) / dt) * turn
+            res.pitch_rate = (pitch0 - p0) / dt
         recent = t >= -cfg.smooth_window - 1e-9
         if recent.sum() >= 3:
             tt = t[recent]
             res.velocity_smoothed = complex(_ls_slope(tt, arr[recent, 1]),
-                                            _ls_slope(tt, arr[recent, 2]))
+                                            _ls_slope(tt, arr[recent, 2])) * turn
             res.pitch_rate_smoothed = _ls_slope(tt, arr[recent, 3])
         window = t >= -cfg.steady_window - 1e-9
-        if window.sum() >= 3 and -t[window][0] >= cfg.steady_fill * cfg.steady_window - 1e-9:
-            res.steady_speed = _ls_slope(t[window], arr[window, 1])
+        if window.sum() >= 3 and -t[window][0] >= cfg.steady_fill * cfg.steady_window - 1e-9 \
+                and (self.slope_known or self._direction is not None):
+            res.steady_speed = (complex(_ls_slope(t[window], arr[window, 1]),
+                                        _ls_slope(t[window], arr[window, 2])) * turn).real
 
 
 def steady_speed(times, x, window: float) -> Optional[float]:

@@ -1,0 +1,267 @@
+"""
+Footage shot the way users shoot it, drawn by other means than the renderer (issue 21).
+
+The renderer (``frames``) draws the paper's robot through the tracker's own camera model; a test
+made only of its frames cannot find what the tracker assumes about them. ``Shot`` draws a scene
+of its own, with a known answer:
+- the background is a generated "room": multi-scale coloured noise, posters, shelves and cables
+  in muted and in strong colours (reds and skin tones included, no pink), the two boards of the
+  track across it, red objects (some in shadow) and, if asked, pink discs that are not markers;
+- the robot is a kinematic model, not the simulation: a dark body with a travelling light wave
+  and two pink discs (OpenCV's anti-aliased circles, not the renderer's colour) ``spacing``
+  apart, moving along a track climbing at ``slope_deg`` at a mean ``speed`` with a ripple at the
+  wave frequency, bobbing and pitching a little;
+- the camera is handheld: it drifts by ``drift`` pixels over the clip, jitters (``jitter`` px
+  RMS, frame to frame), and may zoom (``zoom``: relative scale change over the clip) and roll
+  (``roll_deg``); the picture is a warp of the scene, so everything moves together but the robot;
+- an ``occluder``: a dark bar sweeping across in front of the robot;
+- sensor noise and JPEG compression.
+
+The scene frame is the picture of a fixed camera (``camera()``: a ``CameraModel`` of the
+picture's size and scale, level); ``truth(t)`` gives the markers' surface-frame centres and
+``mean_speed`` the robot's true mean speed over whole wave cycles. Pure numpy and OpenCV.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Iterator, Tuple
+
+import cv2
+import numpy as np
+
+from saw_ros.vision.camera import CameraModel
+
+MARKER_BGR = (175, 70, 250)        # RGB (250, 70, 175): a pink that is not the renderer's
+SHIFT = 4                          # fixed-point bits for sub-pixel drawing
+ONE = 1 << SHIFT
+MARGIN = 320                       # px of scene drawn around the picture (camera drift)
+
+
+@dataclass(frozen=True)
+class Shot:
+    """One clip: the robot, the scene and the camera (lengths in m, angles in degrees)."""
+
+    duration: float = 8.0
+    fps: float = 60.0
+    width: int = 1280
+    height: int = 720
+    scale: float = 1200.0          # px/m in the robot's plane, for the fixed camera
+    slope_deg: float = 0.0         # the track's climb as the level camera sees it
+    speed: float = 0.07            # m/s, mean
+    ripple: float = 0.25           # speed oscillation, fraction of speed, at wave_hz
+    wave_hz: float = 1.5
+    start_x: float = -0.2          # m, robot centre on the track at t = 0 (track x = 0 at the
+    track_y: float = 0.0           # ... picture's centre, shifted by track_y across the track)
+    spacing: float = 0.32          # m between the marker centres
+    marker_diameter: float = 0.012
+    drift: Tuple[float, float] = (0.0, 0.0)     # px over the clip (picture moves by minus it)
+    jitter: float = 0.0            # px RMS per frame
+    zoom: float = 0.0              # relative scale change over the clip
+    roll_deg: float = 0.0          # camera roll over the clip
+    red_clutter: bool = True       # red objects (and shadowed red) in view
+    pink_clutter: int = 0          # static pink discs of a marker's size in view, not markers
+    occluder: bool = False         # a dark bar sweeps across the robot
+    noise: float = 3.0             # grey levels RMS
+    quality: int = 85              # JPEG quality; 0: none
+    seed: int = 1
+
+    def __post_init__(self):
+        if not (self.duration > 0 and self.fps > 0 and self.scale > 0 and self.spacing > 0):
+            raise ValueError('shot duration, fps, scale and spacing must be > 0')
+        if not 0 <= self.quality <= 100:
+            raise ValueError(f'shot quality = {self.quality!r}: 0 (none) or 1-100')
+
+    # -- geometry ------------------------------------------------------------------------------
+    def camera(self, slope_known: bool = True) -> CameraModel:
+        """Return the fixed camera: the scene frame (slope 0 unless ``slope_known``)."""
+        return CameraModel(width=self.width, height=self.height, scale=self.scale,
+                           slope=math.radians(self.slope_deg) if slope_known else 0.0,
+                           center_x=0.0, center_y=self.track_y)
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.arange(int(round(self.duration * self.fps))) / self.fps
+
+    def pose(self, t: float) -> Tuple[float, float, float]:
+        """Robot centre (track x, y normal to it, m) and pitch (rad) at time t."""
+        w = 2.0 * math.pi * self.wave_hz
+        x = self.start_x + self.speed * t + self.ripple * self.speed / w * math.sin(w * t)
+        y = self.track_y + 0.0225 + 0.0004 * math.sin(w * t + 0.7)     # mid-gap
+        return x, y, math.radians(0.4) * math.sin(w * t + 1.9)
+
+    def truth(self, t: float) -> Tuple[complex, complex]:
+        """(front, back) marker centres in the surface frame (complex, m)."""
+        x, y, pitch = self.pose(t)
+        half = 0.5 * self.spacing * complex(math.cos(pitch), math.sin(pitch))
+        return complex(x, y) + half, complex(x, y) - half
+
+    def mean_speed(self) -> float:
+        """Return the true mean speed (whole wave cycles: the ripple cancels), m/s."""
+        return self.speed
+
+    def _camera_motion(self) -> np.ndarray:
+        """Per frame 2x3 similarity: scene pixel -> picture pixel."""
+        rng = np.random.default_rng(self.seed + 7)
+        n = len(self.times)
+        s = np.linspace(0.0, 1.0, n)
+        # The drift starts and stops gently (a hand), the jitter is white frame to frame.
+        ease = 0.5 - 0.5 * np.cos(np.pi * s)
+        shake = rng.normal(0.0, self.jitter / math.sqrt(2.0), (n, 2)) if self.jitter else \
+            np.zeros((n, 2))
+        c = np.array([(self.width - 1) / 2.0, (self.height - 1) / 2.0])
+        out = np.empty((n, 2, 3))
+        for k in range(n):
+            zoom = 1.0 + self.zoom * ease[k]
+            a = math.radians(self.roll_deg) * ease[k]
+            r = zoom * np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+            shift = -np.array(self.drift) * ease[k] + shake[k]
+            out[k, :, :2] = r
+            out[k, :, 2] = c - r @ c + shift
+        return out
+
+    # -- drawing -------------------------------------------------------------------------------
+    def _background(self) -> np.ndarray:
+        """Return the static scene, MARGIN px larger than the picture on every side."""
+        rng = np.random.default_rng(self.seed)
+        h, w = self.height + 2 * MARGIN, self.width + 2 * MARGIN
+        img = np.zeros((h, w, 3), np.float32)
+        for cell, weight in ((240, 45.0), (60, 25.0), (12, 14.0), (3, 7.0)):
+            # Mostly brightness, a little colour: plaster, wood, fabric.
+            field = rng.normal(0.0, 1.0, (h // cell + 2, w // cell + 2, 1)) * [1.0, 1.0, 1.0] \
+                + rng.normal(0.0, 0.2, (h // cell + 2, w // cell + 2, 3))
+            img += weight * cv2.resize(field.astype(np.float32), (w, h),
+                                       interpolation=cv2.INTER_CUBIC)
+        img += np.array([120.0, 135.0, 145.0], np.float32)        # a warm grey wall
+        palette = [(40, 40, 160), (30, 60, 200), (60, 110, 200), (90, 140, 220),   # reds, skin
+                   (150, 100, 60), (60, 120, 60), (200, 200, 190), (30, 30, 30),
+                   (80, 160, 200), (120, 90, 70), (170, 170, 60), (20, 90, 140)]
+        for _ in range(70):                                          # posters, boxes, shelves
+            colour = palette[rng.integers(len(palette))]
+            x0, y0 = rng.integers(0, w), rng.integers(0, h)
+            bw, bh = rng.integers(20, 260), rng.integers(10, 200)
+            if rng.random() < 0.5:
+                cv2.rectangle(img, (int(x0), int(y0)), (int(x0 + bw), int(y0 + bh)), colour, -1,
+                              cv2.LINE_AA)
+            else:
+                cv2.ellipse(img, (int(x0), int(y0)), (int(bw // 2), int(bh // 2)),
+                            float(rng.uniform(0, 180)), 0, 360, colour, -1, cv2.LINE_AA)
+        for _ in range(25):                                          # cables, edges, text
+            p0 = (int(rng.integers(0, w)), int(rng.integers(0, h)))
+            p1 = (int(p0[0] + rng.integers(-300, 300)), int(p0[1] + rng.integers(-300, 300)))
+            cv2.line(img, p0, p1, palette[rng.integers(len(palette))], int(rng.integers(1, 5)),
+                     cv2.LINE_AA)
+        cam = self.camera()
+        half = 1.5 * (self.width + 2 * MARGIN) / self.scale
+        for y0, y1, colour in ((-0.035, -0.008, (60, 100, 140)), (0.053, 0.080, (60, 100, 140)),
+                               (-0.008, 0.0, (190, 200, 205)), (0.045, 0.053, (190, 200, 205))):
+            corners = np.array([-half + 1j * y0, half + 1j * y0, half + 1j * y1, -half + 1j * y1])
+            self._poly(img, cam.to_pixels(corners + 1j * self.track_y) + MARGIN * (1 + 1j),
+                       colour)
+        if self.red_clutter:
+            for x, y, r, colour in ((0.05, 0.17, 0.03, (35, 30, 200)),
+                                    (-0.30, 0.15, 0.012, (25, 20, 110)),      # red in shadow
+                                    (-0.22, 0.15, 0.012, (25, 20, 110)),
+                                    (0.35, -0.14, 0.02, (40, 25, 215)),
+                                    (-0.40, -0.12, 0.04, (30, 45, 170))):
+                self._disc(img, cam.to_pixels(complex(x, y + self.track_y)) + MARGIN * (1 + 1j),
+                           r * self.scale, colour)
+        for k in range(self.pink_clutter):
+            p = complex(-0.35 + 0.25 * k, 0.13 + 0.02 * k + self.track_y)
+            self._disc(img, cam.to_pixels(p) + MARGIN * (1 + 1j),
+                       0.5 * self.marker_diameter * self.scale, MARKER_BGR)
+        img = cv2.GaussianBlur(img, (0, 0), 0.7)
+        return np.clip(img, 0, 255).astype(np.uint8)
+
+    @staticmethod
+    def _poly(img, points, colour) -> None:
+        pts = np.stack([np.rint(points.real * ONE), np.rint(points.imag * ONE)], -1)
+        cv2.fillPoly(img, [pts.astype(np.int32)], colour, cv2.LINE_AA, SHIFT)
+
+    @staticmethod
+    def _disc(img, centre: complex, radius: float, colour) -> None:
+        cv2.circle(img, (int(round(centre.real * ONE)), int(round(centre.imag * ONE))),
+                   int(round(radius * ONE)), colour, -1, cv2.LINE_AA, SHIFT)
+
+    def _robot(self, img, t: float, to_picture, zoom: float) -> None:
+        """Draw the robot (body, wave, markers) at time t into the picture."""
+        x, y, pitch = self.pose(t)
+        cam = self.camera()
+        rot = complex(math.cos(pitch), math.sin(pitch))
+        centre = complex(x, y)
+
+        def px(points):
+            return to_picture(cam.to_pixels(centre + rot * np.asarray(points)))
+        self._poly(img, px(np.array([-0.21 - 0.02j, 0.21 - 0.02j, 0.21 + 0.02j, -0.21 + 0.02j])),
+                   (55, 60, 62))
+        s = np.linspace(-0.19, 0.19, 60)
+        phase = 2.0 * math.pi * self.wave_hz * t
+        wave = s + 1j * (0.014 * np.sin(2.0 * math.pi * s / 0.1 - phase))
+        pts = px(wave)
+        cv2.polylines(img, [np.stack([np.rint(pts.real * ONE), np.rint(pts.imag * ONE)], -1)
+                            .astype(np.int32)], False, (185, 190, 190),
+                      max(1, int(round(0.006 * self.scale * zoom))), cv2.LINE_AA, SHIFT)
+        for m in (0.5 * self.spacing, -0.5 * self.spacing):
+            self._disc(img, complex(px(m)),
+                       0.5 * self.marker_diameter * self.scale * zoom, MARKER_BGR)
+
+    def frames(self) -> Iterator[Tuple[int, float, np.ndarray]]:
+        """Yield (index, t, BGR frame): a frame source (saw_ros.vision.offline)."""
+        background = self._background()
+        motion = self._camera_motion()
+        rng = np.random.default_rng(self.seed + 3)
+        noise = np.rint(rng.normal(0.0, self.noise, (self.height + 16, self.width + 16, 3))) \
+            .astype(np.int16) if self.noise > 0 else None
+        cam = self.camera()
+        for k, t in enumerate(self.times):
+            m = motion[k]
+            into_bg = m.copy()
+            into_bg[:, 2] -= m[:, :2] @ np.array([MARGIN, MARGIN])
+            frame = cv2.warpAffine(background, into_bg, (self.width, self.height),
+                                   flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+            def to_picture(p, m=m):
+                p = np.asarray(p)
+                return (m[0, 0] * p.real + m[0, 1] * p.imag + m[0, 2]) + \
+                    1j * (m[1, 0] * p.real + m[1, 1] * p.imag + m[1, 2])
+            zoom = math.hypot(m[0, 0], m[1, 0])
+            self._robot(frame, float(t), to_picture, zoom)
+            if self.occluder:
+                # A bar 3 cm wide sweeping right to left across the robot every 2 s.
+                u = (1.0 - ((t * 0.5) % 1.0)) * (self.width + 200) - 100
+                x_track = cam.to_surface(complex(u, self.height / 2)).real
+                bar = np.array([x_track - 0.015 - 0.12j, x_track + 0.015 - 0.12j,
+                                x_track + 0.015 + 0.17j, x_track - 0.015 + 0.17j]) + \
+                    1j * self.track_y
+                self._poly(frame, to_picture(cam.to_pixels(bar)), (40, 35, 30))
+            if noise is not None:
+                dy, dx = rng.integers(0, 16, 2)
+                frame = np.clip(frame + noise[dy:dy + self.height, dx:dx + self.width], 0, 255) \
+                    .astype(np.uint8)
+            if self.quality:
+                ok, buf = cv2.imencode('.jpg', frame, [cv2.IMWRITE_JPEG_QUALITY, self.quality])
+                frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+            yield k, float(t), frame
+
+    def occluded(self, t: float, name: str) -> bool:
+        """Whether the occluder covers any of marker ``name`` ('front', 'back') at time t."""
+        if not self.occluder:
+            return False
+        cam = self.camera()
+        u = (1.0 - ((t * 0.5) % 1.0)) * (self.width + 200) - 100
+        x_track = cam.to_surface(complex(u, self.height / 2)).real
+        front, back = self.truth(t)
+        p = front if name == 'front' else back
+        return abs(p.real - x_track) <= 0.015 + 0.5 * self.marker_diameter + 0.001
+
+    def visible(self, t: float, name: str) -> bool:
+        """Whether marker ``name`` is fully in the picture of the fixed camera and not hidden."""
+        front, back = self.truth(t)
+        p = complex(self.camera(True).to_pixels(front if name == 'front' else back))
+        r = 0.5 * self.marker_diameter * self.scale + 12.0     # room for drift of a few px
+        return r <= p.real <= self.width - 1 - r and r <= p.imag <= self.height - 1 - r and \
+            not self.occluded(t, name)
+
+    @property
+    def size(self) -> Tuple[int, int]:
+        return self.width, self.height
