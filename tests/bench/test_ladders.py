@@ -1,0 +1,48 @@
+"""
+The bench's ladders climb until a rung fails: their top is not what they measure (issue 20).
+
+A machine that sustains every rung gets the top rung flagged as a lower bound in the JSON.
+The rungs here are stand-ins for the graph (a threshold), the ladder logic is the bench's.
+"""
+import json
+
+import pytest
+
+
+def _sustains_up_to(limit, calls):
+    def measure(rtf, duration, work, *args, **kwargs):
+        calls.append(rtf)
+        return {'sustained': rtf <= limit, 'lost': 0 if rtf <= limit else 7,
+                'cpu_share': {'simulator': 0.5}}
+    return measure
+
+
+@pytest.mark.parametrize('limit', [0.6, 1.0, 1.5, 2.0, 7.0, 1e9])
+def test_pipeline_ladder_finds_the_limit_or_says_it_is_a_lower_bound(tmp_path, monkeypatch,
+                                                                      limit):
+    from saw_ros.bench import pipeline
+    calls = []
+    monkeypatch.setattr(pipeline, 'measure', _sustains_up_to(limit, calls))
+    best, lost, cpu, capped = pipeline.ladder(1.0, tmp_path, [])
+    held = [r for r in pipeline.UP + pipeline.DOWN if r <= limit]
+    assert best == max(held) and lost == 0 and cpu == {'simulator': 0.5}
+    assert capped == (limit >= pipeline.UP[-1])
+    if not capped and limit >= 1.0:
+        assert calls[-1] > limit          # it stopped at the first rung that failed
+    assert pipeline.UP[-1] >= 10 * 2.0    # far above the 2.0 the old ladder stopped at
+
+
+@pytest.mark.parametrize('limit', [3.0, 7.0, 1e9])
+def test_simulator_node_ladder_climbs_past_5(tmp_path, monkeypatch, limit):
+    from saw_ros import bench
+    from saw_ros.bench import simulator_node
+    calls = []
+    monkeypatch.setenv(bench.LOGS_ENV, str(tmp_path))
+    monkeypatch.setattr(simulator_node, 'measure', _sustains_up_to(limit, calls))
+    out = simulator_node.run(quick=True)
+    assert set(out) == set(simulator_node.KEYS)
+    held = [r for r in simulator_node.LADDER if r <= limit]
+    assert out['sim_max_realtime_factor'] == max(held)
+    assert out['sim_max_realtime_factor_is_lower_bound'] is (limit >= simulator_node.LADDER[-1])
+    assert simulator_node.LADDER[-1] >= 10 * 5.0
+    json.dumps(out)
