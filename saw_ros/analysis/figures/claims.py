@@ -50,7 +50,9 @@ class Claim:
 
 
 def _f(x, d=3):
-    return 'nan' if x is None or not math.isfinite(x) else f'{x:.{d}f}'
+    # Said in words: a bare nan in the report would not tell the reader what happened.
+    return ('not computed (a run diverged or never settled)' if x is None or not math.isfinite(x)
+            else f'{x:.{d}f}')
 
 
 def _drop(values):
