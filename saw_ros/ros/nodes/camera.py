@@ -24,6 +24,7 @@ import queue
 import sys
 import threading
 import time
+from typing import Tuple
 
 from geometry_msgs.msg import PoseStamped
 import numpy as np
@@ -113,30 +114,52 @@ def yaml_file() -> str:
     return yaml_text('camera', YAML_HEADER, PARAMETERS, with_scenario=False)
 
 
+def camera_and_options(p: dict) -> Tuple[CameraModel, RenderOptions]:
+    """Return the camera model and the render options of the node's parameter values."""
+    camera = CameraModel(width=int(p['width']), height=int(p['height']),
+                         scale=float(p['scale']), slope=float(p['slope']),
+                         center_x=float(p['center_x']), center_y=float(p['center_y']),
+                         distance=float(p['distance']))
+    if p['fov'] > 0:
+        camera = camera.with_fov(float(p['fov']))
+    options = RenderOptions(noise=float(p['noise']), exposure=float(p['exposure']),
+                            blur_samples=int(p['blur_samples']),
+                            brightness=float(p['brightness']), texture=bool(p['texture']),
+                            seed=int(p['seed']))
+    return camera, options
+
+
 class CameraNode(Node):
+    """Declare, then build: parameters, the renderer and video, the frame state, the topics."""
+
     def __init__(self, **kwargs):
         super().__init__('camera', **kwargs)
         try:
-            self.params = ScenarioParameters(self, exclude=SCENARIO_EXCLUDED,
-                                             frozen={'robot': 'restart the camera',
-                                                     'conditions.gap': 'restart the camera'})
-            p = declare_spec(self, PARAMETERS)
-            camera = CameraModel(width=int(p['width']), height=int(p['height']),
-                                 scale=float(p['scale']), slope=float(p['slope']),
-                                 center_x=float(p['center_x']), center_y=float(p['center_y']),
-                                 distance=float(p['distance']))
-            if p['fov'] > 0:
-                camera = camera.with_fov(float(p['fov']))
-            options = RenderOptions(noise=float(p['noise']), exposure=float(p['exposure']),
-                                    blur_samples=int(p['blur_samples']),
-                                    brightness=float(p['brightness']), texture=bool(p['texture']),
-                                    seed=int(p['seed']))
+            p = self._declare()
+            camera, options = camera_and_options(p)
             scenario = self.params.scenario
             self.renderer = Renderer(scenario.robot, scenario.conditions.gap, camera, options)
             self.writer = VideoWriter(p['video_path'], p['fps'], (camera.width, camera.height)) \
                 if p['video_path'] else None
         except (ParameterError, ParameterException, ValueError, VideoError) as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from exc
+        self._build_state(p, camera, options)
+        self._build_topics(p, camera)
+        self.get_logger().info(
+            f'camera {camera.width}x{camera.height} at {self.fps:g} fps of simulated time, '
+            f'{camera.scale:g} px/m (f = {camera.focal:g} px), slope '
+            f'{math.degrees(camera.slope):g} deg'
+            + (f', writing {p["video_path"]}' if self.writer else ''))
+
+    def _declare(self) -> dict:
+        """Declare the scenario's parameters the drawing needs, then the node's; return its own."""
+        self.params = ScenarioParameters(self, exclude=SCENARIO_EXCLUDED,
+                                         frozen={'robot': 'restart the camera',
+                                                 'conditions.gap': 'restart the camera'})
+        return declare_spec(self, PARAMETERS)
+
+    def _build_state(self, p: dict, camera: CameraModel, options: RenderOptions) -> None:
+        """Set the frame clock, the follow rail, the counters and the output thread's queue."""
         self.camera = camera
         self.fps = float(p['fps'])
         self.frame_id = p['frame_id']
@@ -167,6 +190,9 @@ class CameraNode(Node):
         self._image_cdr = cdr.ImageCdr(camera.width, camera.height, 'bgr8', camera.width * 3,
                                        self.frame_id)
         self._helix = cdr.JointPosition('helix')
+
+    def _build_topics(self, p: dict, camera: CameraModel) -> None:
+        """Create the publishers, the inputs' subscriptions and the readiness report."""
         out_qos = image_publisher_qos()
         in_qos = with_depth(STREAM_QOS, INPUT_DEPTH)
         self._pub_image = self.create_publisher(Image, topics.IMAGE, out_qos) \
@@ -193,11 +219,6 @@ class CameraNode(Node):
         # (A steady clock: with use_sim_time the node's clock stands still until /clock runs.)
         self._match_timer = self.create_timer(0.05, self._report_matched,
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.get_logger().info(
-            f'camera {camera.width}x{camera.height} at {self.fps:g} fps of simulated time, '
-            f'{camera.scale:g} px/m (f = {camera.focal:g} px), slope '
-            f'{math.degrees(camera.slope):g} deg'
-            + (f', writing {p["video_path"]}' if self.writer else ''))
 
     def _camera_info(self, cam: CameraModel = None) -> CameraInfo:
         cam = cam or self.camera
