@@ -409,11 +409,7 @@ class BagReader:
 
     @property
     def complete(self) -> bool:
-        """
-        Return False once a scan met an unfinished file.
-
-        (No summary: the recorder was killed.)
-        """
+        """Return False once a scan met an unfinished file (no summary: recorder killed)."""
         return not any(n is not None for n in self._tail.values())
 
     @property
@@ -682,9 +678,9 @@ class BagReader:
     def _chunk_damage(path, offset, number, summary: _Summary, index: Optional[ChunkIndex],
                       reason: str, body=None) -> Damage:
         """
-        Return a damaged chunk, with its log time range from the summary's chunk index.
+        Return a damaged chunk, with its log time range.
 
-        (else from the chunk record itself).
+        The range comes from the summary's chunk index, else from the chunk record itself.
         """
         start = end = None
         if index is not None:

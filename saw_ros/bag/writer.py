@@ -325,7 +325,7 @@ class BagWriter:
         """
         Write the buffered messages with log times up to ``log_time``.
 
-        (and, while the buffer holds more than ``max_buffer_bytes``, the oldest others).
+        While the buffer holds more than ``max_buffer_bytes``, the oldest others go too.
         """
         with self._lock:
             self._flush_until(log_time)
@@ -334,8 +334,8 @@ class BagWriter:
         """
         Write the whole buffer once no message has arrived for ``idle_s``.
 
-        (the recording went quiet: what is buffered would otherwise wait for the next message or
-        close()).
+        The recording went quiet: what is buffered would otherwise wait for the next message or
+        close().
         """
         period = min(0.25, idle_s / 2)
         seen, quiet = -1, 0.0

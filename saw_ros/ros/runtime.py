@@ -106,9 +106,10 @@ def take_stop_signals() -> dict:
 def spin_node(node, until: Optional[Callable[[], bool]] = None, executor=None,
               pause: float = 0.0) -> None:
     """
-    Spin ``node`` on ``executor`` (default: ``make_executor()``) until a stop is requested.
+    Spin ``node`` on ``executor`` (default: ``make_executor()``) until it should stop.
 
-    (SIGINT, SIGTERM), its context is shut down or ``until()`` holds.
+    That is: a stop is requested (SIGINT, SIGTERM), its context is shut down or ``until()``
+    holds.
 
     Spins in 0.1 s slices: the stop request and ``until`` are checked at least that often, and
     between callbacks only (the signal handler just sets the request). ``pause`` s of sleep after
@@ -139,9 +140,9 @@ def spin_events(node, until: Optional[Callable[[], bool]] = None) -> None:
 
 def _context_gone(exc: BaseException, node) -> bool:
     """
-    ``exc`` is rcl refusing to work because the context was shut down.
+    Return whether ``exc`` is rcl refusing to work because the context was shut down.
 
-    (an external shutdown, or another process' signal handling): a stop, not a failure.
+    That is an external shutdown, or another process' signal handling: a stop, not a failure.
     """
     from rclpy.exceptions import InvalidHandle
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy

@@ -277,10 +277,10 @@ def shrink(image: np.ndarray, factor: int) -> np.ndarray:
 def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
            encoding: str = 'bgr8', small: Optional[np.ndarray] = None) -> List[Candidate]:
     """
-    Pink blobs in a BGR (or RGB) uint8 image with sub-pixel centroids.
+    Return the pink blobs in a BGR (or RGB) uint8 image, heaviest first.
 
-    (image pixels), area, colour and roundness; heaviest first. ``small``: the whole image
-    already shrunk (``shrink``), when there is no region of interest.
+    Each with its sub-pixel centroid (image pixels), area, colour and roundness. ``small``: the
+    whole image already shrunk (``shrink``), when there is no region of interest.
     """
     if image is None or image.ndim != 3 or image.shape[2] != 3:
         raise ValueError('detect needs an HxWx3 colour image')
@@ -533,10 +533,10 @@ class Tracker:
 
     def move_camera(self, camera: CameraModel) -> None:
         """
-        Return the camera moved parallel to the plane of motion.
+        Take the camera moved parallel to the plane of motion, and track on.
 
-        (same size, scale and lens: a camera on a rail following the robot): tracking goes on, what
-        is known in ideal pixels moves with the picture; positions and speeds stay continuous in
+        Same size, scale and lens: a camera on a rail following the robot. What is known in ideal
+        pixels moves with the picture; positions and speeds stay continuous in
         the surface frame.
         """
         delta = complex(camera.to_pixels(0j)) - complex(self.camera.to_pixels(0j))

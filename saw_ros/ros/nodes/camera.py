@@ -361,8 +361,8 @@ class CameraNode(Node):
         """
         Publish image and camera info, then add the frame to the video.
 
-        (even when publishing failed: after Ctrl-C the context is gone but the video still gets
-        every frame).
+        The video gets the frame even when publishing failed: after Ctrl-C the context is gone,
+        but the video still gets every frame.
         """
         t0 = time.perf_counter()
         try:

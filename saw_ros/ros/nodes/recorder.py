@@ -97,9 +97,10 @@ LARGE_TYPES = {'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage'}
 
 def default_topics():
     """
-    (topics, prefixes) from msg_config/record_topics.yaml.
+    Return (topics, prefixes) from msg_config/record_topics.yaml.
 
-    (source tree or installed share, as config_path finds it: no ament index needed).
+    The file is found in the source tree or the installed share, as config_path finds it (no
+    ament index needed).
     """
     from saw_ros.interface.config import config_path
     path = config_path('record_topics.yaml')
@@ -114,7 +115,7 @@ def default_excluded() -> List[str]:
     """
     Return the ``exclude`` list of msg_config/record_topics.yaml.
 
-    (topics under a prefix that the recorder leaves out by default).
+    Those are topics under a prefix that the recorder leaves out by default.
     """
     from saw_ros.interface.config import config_path
     try:

@@ -240,9 +240,10 @@ class VideoSourceNode(Node):
 
     def _subscribers_ready(self) -> bool:
         """
-        ``wait_for_subscribers`` image subscribers matched, and as many camera-info ones.
+        Return whether ``wait_for_subscribers`` image and camera-info subscribers matched.
 
-        (or INFO_GRACE s passed since the images matched: a reader with px_per_m takes none).
+        The camera-info ones count as matched once INFO_GRACE s passed since the images matched:
+        a reader with px_per_m takes none.
         """
         n = int(self.p['wait_for_subscribers'])
         if self._pub_image.get_subscription_count() < n:

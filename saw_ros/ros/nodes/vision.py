@@ -161,7 +161,7 @@ class VisionNode(Node):
         """
         Take a CameraInfo as bytes; deserialize it only when more than its stamp changed.
 
-        (one comes with every frame, and rclpy's conversion of its arrays cost ~0.2 ms).
+        One comes with every frame, and rclpy's conversion of its arrays cost ~0.2 ms.
         """
         after_stamp = cdr.after_stamp(data)
         if after_stamp == self._info_unchanged:
