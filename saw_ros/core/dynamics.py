@@ -25,15 +25,20 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
+from saw_ros.core import stability
 from saw_ros.core.contact import contact_step, ContactLaw, ContactState
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
 from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
 from saw_ros.core.motor import MotorLaw
-from saw_ros.core.params import ParameterError, RobotParams, Scenario
+from saw_ros.core.params import ParameterError, PLACEMENT_SHARE, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
 
 GRAVITY = 9.81  # m/s^2
 TWO_PI = 2.0 * math.pi
+# Faster than this (m/s, or rad/s of pitch) the state left the model: the fastest wave allowed
+# (5 Hz) drives the robot at 0.35 m/s, and a robot thrown by a tether force (external_force
+# 1e9 N sent it to x = -4.8e10 m) or falling through a surface moves orders of magnitude faster.
+MAX_SPEED = 100.0
 
 
 class DivergenceError(RuntimeError):
@@ -132,6 +137,9 @@ class Simulator:
             if s.robot != self.robot or s.integration.dt != self.dt:
                 raise ParameterError('robot geometry and integration.dt cannot change during a '
                                      'run; start a new simulation')
+            # Contacts too stiff for the step would ring up to NaN: refused with the limit.
+            # (Here, not in the Scenario: the worm model takes any stiffness.)
+            stability.check(s)
         self.scenarios = list(scenarios)
 
         cond = [s.conditions for s in scenarios]
@@ -177,7 +185,12 @@ class Simulator:
                                   -GRAVITY * np.cos(slope), np.zeros(self.count)]) * self.dt
 
     def reset(self) -> None:
-        """Go back to the initial state (model.md): centred in the gap, at rest, wave phase 0."""
+        """
+        Go back to the initial state (model.md): centred in the gap, at rest, wave phase 0.
+
+        Time goes on (``t`` counts every step since the start), so that what a reset is logged
+        with, or a later divergence reported at, is the time of the run.
+        """
         self.q[:] = 0.0
         self.q[1] = [s.conditions.gap / 2.0 for s in self.scenarios]
         self.phase[:] = 0.0
@@ -185,7 +198,6 @@ class Simulator:
         self.omega[:] = np.where(self.driven, 0.0, self._omega_dt / self.dt)
         for a in (self.motor_torque, self.current, self.load_torque, self.friction_torque):
             a[:] = np.nan
-        self.steps = 0
         self.contacts.reset()
 
     def _set_motor(self, scenarios: Sequence[Scenario]) -> None:
@@ -351,6 +363,26 @@ class Simulator:
     def t(self) -> float:
         return self.steps * self.dt
 
+    def placement_error(self) -> Optional[str]:
+        """
+        Say why the current state cannot go on under the current parameters, or return None.
+
+        After a change of the gap (or of max_penetration) the tips are where they were: a
+        narrower gap can put them deeper into a surface than the robot's start position may
+        (PLACEMENT_SHARE of max_penetration), a depth the step cannot recover from.
+        """
+        body = self.table.at(self.phase) * np.exp(1j * self.q[2])[:, None]
+        pen = (body.imag + self.q[1][:, None]) * self._side - self._level
+        allowed = PLACEMENT_SHARE * self._max_penetration
+        too_deep = pen - allowed[:, None]
+        i, tip = np.unravel_index(np.argmax(too_deep), too_deep.shape)
+        if too_deep[i, tip] <= 0:
+            return None
+        surface = 'top' if self._side[tip] > 0 else 'bottom'
+        return (f'a tip would be {pen[i, tip] * 1000:.1f} mm deep in the {surface} surface '
+                f'(scenario {i}), more than {PLACEMENT_SHARE:.0%} of surface.max_penetration = '
+                f'{self._max_penetration[i] * 1000:.1f} mm')
+
     # -- stepping ------------------------------------------------------------------------------
     def step(self) -> None:
         """One semi-implicit Euler step of every scenario."""
@@ -391,7 +423,10 @@ class Simulator:
             self.phase += self._omega_dt
         np.remainder(self.phase, TWO_PI, out=self.phase)
         self.steps += 1
-        if not math.isfinite(q[3:].sum()) or pen.max() > self._max_penetration_any:
+        # One dot product bounds every speed and catches NaN (the comparison is then False).
+        speed = q[3:]
+        if not np.vdot(speed, speed) <= MAX_SPEED ** 2 or \
+                pen.max() > self._max_penetration_any:
             self._check_divergence()
 
     @property
@@ -407,6 +442,14 @@ class Simulator:
             raise DivergenceError(
                 f'simulation diverged at t = {t:.3f} s (scenario {i}): the state became '
                 f'non-finite; reduce integration.dt or soften the surfaces')
+        fast = np.abs(self.q[3:]).max(axis=0)
+        if (fast > MAX_SPEED).any():
+            i = int(np.argmax(fast))
+            vx, vy, w = self.q[3:, i]
+            raise DivergenceError(
+                f'simulation diverged at t = {t:.3f} s (scenario {i}): the robot moved at '
+                f'({vx:.3g} m/s, {vy:.3g} m/s, {w:.3g} rad/s), beyond {MAX_SPEED:g} m/s or '
+                f'rad/s, far outside the model (check the resisting force and slope)')
         too_deep = self.penetration - self._max_penetration[:, None]
         i, tip = np.unravel_index(np.argmax(too_deep), too_deep.shape)
         if too_deep[i, tip] > 0:

@@ -17,6 +17,10 @@ import math
 from typing import Any, Dict, Iterable, Iterator, Optional, Tuple
 
 
+GRAVITY = 9.81           # m/s^2 (dynamics.GRAVITY)
+PLACEMENT_SHARE = 0.8    # of max_penetration the crests may press in the robot's start position
+
+
 class ParameterError(ValueError):
     """An invalid parameter value: the message names the parameter, the value and the range."""
 
@@ -202,12 +206,15 @@ class SurfaceParams(_Validated):
     restitution: float = spec(0.9, '', 'coefficient of restitution e: share of the stored energy '
                               'a tip gets back when it unloads', 0.0,
                               1.0, low_open=True)
+    # Below 1 um/s the switch is the paper's sign rule at every rate that matters; its folded
+    # gain kn (1 - e) / (2 v0 dt) would reach inf (then NaN) as v0 -> 0.
     hysteresis_speed: float = spec(0.01, 'm/s', 'deformation rate over which the force '
-                                   'factor passes from e (unloading) to 1 (loading)', 0.0, None,
-                                   low_open=True)
+                                   'factor passes from e (unloading) to 1 (loading)', 1e-6, None)
+    # Up to 50 mm, deeper than the robot's whole amplitude: the surfaces are layers of foam, and
+    # the weight check (Scenario) raises it to the power hertz_exponent.
     max_penetration: float = spec(0.015, 'm',
                                   'deepest a tip can physically press into a surface; deeper '
-                                  'means the simulation diverged', 0.0, None, low_open=True)
+                                  'means the simulation diverged', 0.0, 0.05, low_open=True)
 
 
 @dataclass(frozen=True)
@@ -217,12 +224,19 @@ class ConditionParams(_Validated):
     section = 'conditions'
     slope: float = spec(0.0, 'rad', 'slope alpha of the surfaces (+ climbs, - descends)',
                         -math.pi / 2, math.pi / 2)
-    gap: float = spec(0.045, 'm', 'distance h between the bottom and top surfaces', 0.0, None,
+    # Up to 0.1 m: in a wider gap the robot drops onto the bottom surface from higher than
+    # its own height (a 1 m gap drove its tips 15 mm into the silicone on landing).
+    gap: float = spec(0.045, 'm', 'distance h between the bottom and top surfaces', 0.0, 0.1,
                       low_open=True)
+    # 100 N is 33 times the robot's weight: more than any tether of a 313 g crawler, and a
+    # bound keeps the robot from being thrown beyond dynamics.MAX_SPEED in one step.
     external_force: float = spec(0.0, 'N', 'resisting force F_ext along -x at the COM (tether)',
-                                 None, None)
+                                 -100.0, 100.0)
+    # Up to 5 Hz, three times the paper's fastest run (1.7 Hz): from 9 Hz on the paper's robot
+    # bounces off the surfaces deeper than max_penetration within 1-2 s, at any dt (physics, not
+    # the integrator), and at 5 Hz already in a 80 mm gap.
     frequency: float = spec(1.0, 'Hz', 'helix turns per second f (0 stops the wave); ignored '
-                            'while motor.voltage > 0, which then drives the helix', 0.0, 50.0)
+                            'while motor.voltage > 0, which then drives the helix', 0.0, 5.0)
 
 
 @dataclass(frozen=True)
@@ -230,7 +244,10 @@ class IntegrationParams(_Validated):
     """Time stepping (paper Section 4.3: semi-implicit Euler at 1 kHz)."""
 
     section = 'integration'
-    dt: float = spec(0.001, 's', 'integration time step', 0.0, 0.01, low_open=True)
+    # Up to 4 ms: the paper's robot squeezed in its 45 mm gap rings at omega = 336 rad/s, and
+    # the step is kept within omega dt <= 1.5 (core.stability; 4.46 ms). Other surfaces and gaps
+    # move the limit: the Scenario checks it with the reason.
+    dt: float = spec(0.001, 's', 'integration time step', 0.0, 0.004, low_open=True)
     duration: float = spec(5.0, 's', 'simulated time of a run', 0.0, None)
 
 
@@ -264,8 +281,10 @@ class MotorParams(_Validated):
                                   'and the helix against the links)', 0.0, None)
     inertia: float = spec(0.006, 'kg m^2', 'rotor inertia reflected through the gearbox, plus '
                           'the helix, at the helix shaft; 0 = quasi-static', 0.0, None)
+    # Up to 20 V: 4.7 Hz at the default 0.24 Hz/V, within conditions.frequency's 5 Hz (the
+    # Scenario holds any other hz_per_volt to that too).
     voltage: float = spec(0.0, 'V', 'motor voltage; above 0 the motor drives the helix and '
-                          'conditions.frequency is ignored', 0.0, 48.0)
+                          'conditions.frequency is ignored', 0.0, 20.0)
 
     @property
     def torque_constant(self) -> float:
@@ -299,14 +318,36 @@ class Scenario:
     motor: MotorParams = field(default_factory=MotorParams)
 
     def __post_init__(self):
-        lowest = self.robot.height - 2.0 * self.surface.max_penetration
+        # The robot starts centred in the gap; its crests must leave a fifth of max_penetration
+        # for the motion (at the full depth a 27.5 mm gap diverged within 5 ms, at 80 % none did).
+        lowest = self.robot.height - 2.0 * PLACEMENT_SHARE * self.surface.max_penetration
         if self.conditions.gap <= lowest:
             raise ParameterError(
                 f'conditions.gap = {self.conditions.gap:g} m is invalid: the robot '
                 f'({self.robot.height * 1000:.1f} mm tall) cannot be placed in it without '
-                f'pressing deeper than surface.max_penetration = '
-                f'{self.surface.max_penetration:g} m into each surface; allowed ({lowest:g}, '
-                f'inf) m')
+                f'pressing deeper than {PLACEMENT_SHARE:.0%} of surface.max_penetration = '
+                f'{self.surface.max_penetration:g} m into each surface; allowed above '
+                f'{lowest:g} m')
+        # Surfaces too soft to carry the robot: even its n bottom tips all pressed
+        # max_penetration deep hold less than its weight, so it sinks through.
+        s = self.surface
+        per_stiffness = self.robot.wave_links * s.max_penetration ** s.hertz_exponent
+        held = per_stiffness * s.normal_stiffness
+        if held < self.robot.mass * GRAVITY:
+            raise ParameterError(
+                f'surface.normal_stiffness = {s.normal_stiffness:g} N/m^{s.hertz_exponent:g} '
+                f'is too soft: all {self.robot.wave_links} bottom tips pressed '
+                f'surface.max_penetration = {s.max_penetration:g} m deep hold {held:.3g} N, less '
+                f"than the robot's weight ({self.robot.mass * GRAVITY:.3g} N); allowed above "
+                f'{self.robot.mass * GRAVITY / per_stiffness:.4g} N/m^'
+                f'{s.hertz_exponent:g}')
+        top = ConditionParams.__dataclass_fields__['frequency'].metadata['high']
+        if self.motor.voltage > 0.0 and self.frequency > top:
+            raise ParameterError(
+                f'motor.voltage = {self.motor.voltage:g} V is invalid: at motor.hz_per_volt = '
+                f'{self.motor.hz_per_volt:g} Hz/V it turns the helix at {self.frequency:.3g} Hz '
+                f'at no load, above the {top:g} Hz conditions.frequency allows; allowed up to '
+                f'{top / self.motor.hz_per_volt + self.motor.dead_voltage:.4g} V')
 
     @property
     def frequency(self) -> float:

@@ -49,6 +49,8 @@ COMPARISON = '/saw/comparison'
 READY = '/saw/ready'
 MARKERS = '/saw/markers'
 TRACKING_MARKERS = '/saw/tracking/markers'
+DIAGNOSTICS = '/diagnostics'
+DIAGNOSTICS = '/diagnostics'
 TF = '/tf'
 TF_STATIC = '/tf_static'
 ROBOT_DESCRIPTION = '/robot_description'
@@ -102,6 +104,12 @@ TOPICS: Tuple[Topic, ...] = (
           'surface -> saw_camera, the camera optical frame'),
     Topic(ROBOT_DESCRIPTION, 'std_msgs/msg/String', 'latched', 'simulator', 'once', '',
           'URDF of the robot (saw_ros.interface.urdf), for robot_state_publisher and RViz'),
+    Topic(DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking', 'simulator',
+          '1 Hz, and at each fault', '', "the simulator's health: OK, WARN after recoveries, "
+          'ERROR at each divergence or change the state cannot take, with the reset it made'),
+    Topic(DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking', 'simulator',
+          '1 Hz, and at each fault', '', "the simulator's health: OK, WARN after recoveries, "
+          'ERROR at each divergence or change the state cannot take, with the reset it made'),
     Topic(READY, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'camera, comparison, vision',
           'once per node', '', "node's status: name, level OK, 'ready': 'true' once its inputs "
           'matched (saw_ros.ros.ready)', recorded=False),

@@ -76,8 +76,14 @@ def test_scenarios_stepped_together_match_each_stepped_alone():
 
 
 def test_diverging_simulation_stops_with_when_and_why():
-    s = Scenario().with_values({'integration.dt': 0.01, 'surface.normal_stiffness': 5e6})
-    with pytest.raises(DivergenceError, match=r'diverged at t = \d+\.\d+ s'):
+    # Too stiff for the step is refused up front now (tests/core/test_stability.py); what can
+    # still leave the model: a robot bouncing off the surfaces deeper than max_penetration (a
+    # fast wave in a wide gap), or one dragged past MAX_SPEED by the strongest tether allowed.
+    s = Scenario().with_values({'conditions.gap': 0.08, 'conditions.frequency': 5.0})
+    with pytest.raises(DivergenceError, match=r'diverged at t = \d+\.\d+ s .* pressed'):
+        simulate(s, 2.0)
+    s = Scenario().with_values({'conditions.external_force': 100.0})
+    with pytest.raises(DivergenceError, match=r'diverged at t = \d+\.\d+ s .* beyond 100 m/s'):
         simulate(s, 2.0)
 
 

@@ -45,9 +45,9 @@ def test_tip_rates_are_the_phase_derivative_of_the_tip_positions():
 
 @pytest.mark.parametrize('friction', [0.0, 0.02])
 def test_no_load_speed_is_hz_per_volt_times_the_voltage_above_the_friction(friction):
-    # Vertical and 30 cm wide: gravity along the surfaces, nothing ever touches a tip.
+    # Vertical and 10 cm wide: gravity along the surfaces, nothing ever touches a tip.
     s = Scenario().with_values({'motor.voltage': 5.0, 'conditions.slope': math.pi / 2,
-                                'conditions.gap': 0.3, 'motor.friction_torque': friction})
+                                'conditions.gap': 0.1, 'motor.friction_torque': friction})
     sim = Simulator(s)
     tr = sim.run(2.0)
     assert np.all(sim.contacts.free)

@@ -36,9 +36,11 @@ from __future__ import annotations
 import math
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
+from saw_ros.core import stability
 from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError, Scenario
@@ -65,6 +67,7 @@ MAX_BATCH = 50               # steps per wake-up: bursts well below the queue de
 MOTOR_RATE = 100.0
 
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
+STATUS_PERIOD = 1.0          # s of simulated time between two statuses on /diagnostics
 WARN_EVERY = 5.0             # s of wall time between "falling behind" warnings
 
 # Names the simulator takes from its own parameters instead of the Scenario's.
@@ -105,6 +108,7 @@ class SimulatorNode(Node):
         self.started = self._wait_subscribers <= 0
         self.add_on_set_parameters_callback(self._validate_own)
         self.add_post_set_parameters_callback(self._apply_own)
+        self.add_on_set_parameters_callback(self._validate_integrable)
 
         scenario = self.params.scenario
         self.dt = scenario.integration.dt
@@ -140,6 +144,17 @@ class SimulatorNode(Node):
         self._pub_description.publish(String(data=urdf.urdf(scenario.robot)))
 
         self.create_service(Trigger, '~/reset', self._on_reset)
+        # Faults (a divergence, a change the state cannot take) and the recoveries: on
+        # /diagnostics when they happen and in a status every STATUS_PERIOD of simulated time.
+        self._pub_diagnostics = self.create_publisher(
+            DiagnosticArray, topics.DIAGNOSTICS,
+            publisher_profile(topics.topic(topics.DIAGNOSTICS).qos))
+        self._status_every = max(1, int(round(STATUS_PERIOD / self.dt)))
+        self._recoveries = 0                # since the start
+        self._recoveries_reported = 0       # at the last status
+        self._last_fault = ''
+        self._last_fault_log = -math.inf    # wall time of the last fault logged
+        self._faults_unlogged = 0
 
         self.steps = 0                  # steps published since start = stamp / dt (monotonic)
         self.finished = False
@@ -182,6 +197,17 @@ class SimulatorNode(Node):
                 return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
+    def _validate_integrable(self, parameters) -> SetParametersResult:
+        """Refuse, with the limit, contacts the step cannot integrate (core.stability)."""
+        scenario, _ = self.params.check(parameters)
+        if scenario is not None and scenario is not self.params.scenario:
+            try:
+                stability.check(scenario)
+            except ParameterError as exc:
+                self.get_logger().warning(f'parameter change refused: {exc}')
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
     def _apply_own(self, parameters) -> None:
         for p in parameters:
             if p.name == 'real_time_factor':
@@ -192,6 +218,11 @@ class SimulatorNode(Node):
 
     def _on_scenario(self, scenario) -> None:
         self.sim.set_scenarios([scenario])
+        # A narrower gap (or a smaller max_penetration) can leave the robot where no step can
+        # take it on from: such a change is applied through a reset (docs/simulator.md).
+        reason = self.sim.placement_error()
+        if reason is not None:
+            self._recover(f'the new parameters do not fit the current state: {reason}')
         self.get_logger().info(
             f'parameters changed at t = {self.steps * self.dt:.3f} s: helix '
             f'{scenario.frequency:g} Hz (from {scenario.frequency_source}), slope '
@@ -208,6 +239,47 @@ class SimulatorNode(Node):
                             f'time goes on')
         self.get_logger().info(response.message)
         return response
+
+    # -- faults --------------------------------------------------------------------------------
+    def _recover(self, reason: str) -> None:
+        """Reset the robot with the current parameters, report it on /diagnostics and log it."""
+        self.sim.reset()
+        self._recoveries += 1
+        t = self.sim.t
+        self._last_fault = f'{reason}; robot reset to its initial state at t = {t:.3f} s'
+        self._publish_status(DiagnosticStatus.ERROR, self._last_fault, t)
+        # Every fault is on /diagnostics; the log says each one too, but at most one line per
+        # WARN_EVERY (a parameter file that diverges again after every reset would flood it).
+        now = time.monotonic()
+        if now - self._last_fault_log >= WARN_EVERY:
+            more = (f' ({self._faults_unlogged} more since the last such line)'
+                    if self._faults_unlogged else '')
+            self.get_logger().error(f'{self._last_fault}; simulated time goes on{more}')
+            self._last_fault_log = now
+            self._faults_unlogged = 0
+        else:
+            self._faults_unlogged += 1
+
+    def _status(self) -> None:
+        """Publish the periodic status: OK, or WARN when the last period needed recoveries."""
+        new = self._recoveries - self._recoveries_reported
+        self._recoveries_reported = self._recoveries
+        if new:
+            self._publish_status(DiagnosticStatus.WARN, f'{new} recoveries in the last '
+                                 f'{STATUS_PERIOD:g} s; last: {self._last_fault}',
+                                 self.steps * self.dt)
+        else:
+            self._publish_status(DiagnosticStatus.OK, 'stepping', self.steps * self.dt)
+
+    def _publish_status(self, level, message: str, t: float) -> None:
+        msg = DiagnosticArray()
+        ns = int(round(t / self.dt)) * self.dt_ns
+        conv.time_msg(ns, msg.header.stamp)
+        msg.status.append(DiagnosticStatus(
+            level=level, name=self.get_name(), message=message, hardware_id='saw_ros',
+            values=[KeyValue(key='t', value=f'{t:.3f}'),
+                    KeyValue(key='recoveries', value=str(self._recoveries))]))
+        self._pub_diagnostics.publish(msg)
 
     # -- stepping ------------------------------------------------------------------------------
     def _rebase(self, now: float) -> None:
@@ -269,15 +341,17 @@ class SimulatorNode(Node):
         try:
             sim.step()
         except DivergenceError as exc:
-            self.finished = True
-            raise NodeFailure(f'stopping, nothing more is published: {exc}') from exc
+            # Never an exit while the node was asked to run on: the state of this step is the
+            # initial one, and every topic goes on (docs/simulator.md, Faults).
+            self._recover(str(exc))
         contacts = sim.contacts
         q = sim.q[:, 0]
         if not math.isfinite(q.sum() + contacts.normal.sum() + contacts.tangential.sum()):
-            self.finished = True
-            raise NodeFailure(f'simulation diverged at t = {sim.t:.3f} s: non-finite state or '
-                              f'forces; stopping, nothing more is published')
+            self._recover(f'simulation diverged at t = {sim.t:.3f} s: non-finite state or '
+                          f'forces')
         self.steps += 1
+        if self.steps % self._status_every == 0:
+            self._status()
         ns = self.steps * self.dt_ns
         x, y, theta, vx, vy, w = q.tolist()
         points = conv.contact_points(sim.tip_positions[0], contacts.normal[0],
@@ -335,10 +409,13 @@ def spin(node: SimulatorNode) -> None:
 # The node's own parameters beside the Scenario's (name, default, spec metadata): declared and
 # written to msg_config/simulator.yaml from here.
 OWN_PARAMETERS = (
+    # Bounded so that no timer arithmetic overflows (1e308 ended the node with an
+    # OverflowError): 1000 is 40 times what the node steps (25 000 steps/s), and stamps keep
+    # their seconds in an int32.
     ('real_time_factor', 1.0, spec_meta('', 'simulated seconds per wall-clock second; 0 = as '
-                                            'fast as possible', 0.0, None)),
+                                            'fast as possible', 0.0, 1000.0)),
     ('duration', 0.0, spec_meta('s', 'simulated time, then the node exits with code 0; 0 = run '
-                                     'until stopped', 0.0, None)),
+                                     'until stopped', 0.0, float(2 ** 31 - 1))),
     ('markers_rate', markers.RATE, spec_meta(
         'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers per simulated second '
         '(at most one per step); 0 = none', 0.0, None, read_only=True)),
