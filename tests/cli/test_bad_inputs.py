@@ -6,6 +6,7 @@ runs `saw-ros` as a user would, in a fresh folder (nothing lands in the reposito
 limit: a check that comes after the long work would show as a timeout.
 """
 from pathlib import Path
+import shlex
 import shutil
 import subprocess
 import sys
@@ -53,6 +54,14 @@ CASES = [
     ('simulate --params-file {d}/bad.yaml', '--params-file {d}/bad.yaml: is not valid YAML'),
     ('simulate --params-file {d}/list.yaml', 'is not a parameter file'),
     ('simulate --params-file {d}/dir', 'is a folder'),
+    ('simulate --params-file {d}/typo.yaml', 'not parameters of the simulator: surface.stifness'),
+    ('simulate --params-file ' + str(ROOT / 'msg_config' / 'camera.yaml'),
+     'not parameters of the simulator: '),
+    ('simulate --set integration.dt=0', '--set integration.dt = 0 is out of range'),
+    ('statics --mass 1e400', '--mass = inf is invalid'),
+    ('calibrate --quick --params motor.hz_per_volt:a:b', 'bounds must be numbers'),
+    ('track ' + VIDEO + ' --px-per-m 600 --roi 0,0,0,0', 'tracker roi'),
+    ('simulate --csv ""', 'must end in .csv'),
     ('simulate --params-file ' + VIDEO, 'is not a text parameter file'),
     ('simulate --csv {d}/text.txt/run.csv', 'cannot be written: {d}/text.txt is a file'),
     ('simulate --csv {d}/run.txt', '--csv {d}/run.txt: must end in .csv'),
@@ -153,6 +162,8 @@ def folder(tmp_path):
     (tmp_path / 'text.mp4').write_text('not a video\n')
     (tmp_path / 'bad.yaml').write_text('simulator: [1,\n')
     (tmp_path / 'list.yaml').write_text('- 1\n- 2\n')
+    (tmp_path / 'typo.yaml').write_text('simulator:\n  ros__parameters:\n    '
+                                        'surface.stifness: 3\n')
     (tmp_path / 'dir').mkdir()
     (tmp_path / 'dir.csv').mkdir()
     header = 'video,slope_deg,voltage_V,px_per_m\n'
@@ -166,7 +177,7 @@ def folder(tmp_path):
 
 @pytest.mark.parametrize('command, expected', CASES, ids=[c or '(none)' for c, _ in CASES])
 def test_bad_input_is_one_line_and_exit_code_2(folder, command, expected):
-    args = [a.replace('{d}', str(folder)) for a in command.split()]
+    args = [a.replace('{d}', str(folder)) for a in shlex.split(command)]
     done = subprocess.run(_saw_ros() + args, cwd=folder, capture_output=True, text=True,
                           timeout=TIMEOUT_S, stdin=subprocess.DEVNULL)
     err = done.stderr
@@ -176,6 +187,6 @@ def test_bad_input_is_one_line_and_exit_code_2(folder, command, expected):
     assert done.returncode == 2, (done.returncode, err)
     assert err.startswith('saw-ros'), err
     # Refused before anything was written: the folder holds only what the fixture made.
-    made = {'text.txt', 'text.mp4', 'bad.yaml', 'list.yaml', 'dir', 'dir.csv',
+    made = {'text.txt', 'text.mp4', 'bad.yaml', 'list.yaml', 'typo.yaml', 'dir', 'dir.csv',
             'text_video.csv', 'no_video.csv', 'level.mp4', 'volts.csv', 'no_scale.csv'}
     assert {p.name for p in folder.iterdir()} == made

@@ -6,10 +6,12 @@ tracker; a table (CSV, markdown), the mean relative error per voltage and overal
 slope and voltage with linear fits (Figure 17) and the AR comparison (Figure 18).
 
 For example:
-  saw-ros campaign                                   # the paper's 20 conditions -> out/campaign
+  saw-ros campaign                                   # the paper's 20 conditions
+      # -> out/campaign/paper (with --videos: out/campaign/footage); --out docs/campaign
+      # refreshes the committed copy
   saw-ros campaign --slopes=-20,0,20 --voltages 6,7 --out /tmp/c   # "=" before negatives
   saw-ros campaign --set motor.hz_per_volt=0.22      # calibrate the motor
-  saw-ros campaign --videos samples/footage/manifest.csv --out out/footage
+  saw-ros campaign --videos samples/footage/manifest.csv
       # your robot's footage: one row per run (video, slope_deg, voltage_V or frequency_hz,
       # px_per_m or marker_spacing_m, notes); each video tracked, the condition simulated
   saw-ros campaign --scheduler tcp://host:8786       # simulate and track on a Dask cluster

@@ -22,7 +22,7 @@ from saw_ros.cli.checks import output_file, params_file, spec_number
 from saw_ros.cli.errors import UserError
 from saw_ros.core import DivergenceError, Scenario, Simulator
 from saw_ros.core.metrics import analyse
-from saw_ros.interface.config import load_scenario
+from saw_ros.interface.config import config_path, load_parameters, load_scenario
 
 HELP = 'run one simulation and print AR, speed and CCI convergence (optionally a CSV)'
 
@@ -63,6 +63,16 @@ def scenario_from_args(args) -> Scenario:
     """
     if args.params_file is not None:
         params_file(args.params_file)
+        # Names the simulator does not know (a typo, another node's file) would be ignored
+        # without a word: its own file, msg_config/simulator.yaml, lists every name it takes.
+        known = set(Scenario().flat()) | set(load_parameters(config_path('simulator.yaml'),
+                                                             'simulator'))
+        unknown = sorted(set(load_parameters(args.params_file, 'simulator')) - known)
+        if unknown:
+            more = f', ... ({len(unknown)} in all)' if len(unknown) > 5 else ''
+            raise UserError(f'--params-file {args.params_file}: not parameters of the simulator: '
+                            f'{", ".join(unknown[:5])}{more} (saw-ros simulate --list names the '
+                            f'model\'s)')
         scenario = load_scenario(args.params_file)
     else:
         scenario = Scenario()
