@@ -52,7 +52,9 @@ def _graph(context):
                              report_path=value('report_path') or None)
     # The consumers must not preempt the simulator (saw_ros.graph.process.batch_policy).
     batch = 'chrt --batch 0' if shutil.which('chrt') else None
-    nodes = {name: Node(package='saw_ros', executable=name, name=name, output='screen',
+    # No `name=`: it would remap every node of the process (the recorder has two) to that name.
+    # exec_name labels the output, which would otherwise read 'chrt'.
+    nodes = {name: Node(package='saw_ros', executable=name, exec_name=name, output='screen',
                         parameters=[values], prefix=None if name == 'simulator' else batch)
              for name, values in params.items()}
     actions = list(nodes.values())
@@ -62,7 +64,7 @@ def _graph(context):
                  '--timeout', f'{3 * MATCH_TIMEOUT:g}'], name='ready', output='screen')
         recorded = {'topics': topics.recorded_topics()}
         recorded.update({'output': value('bag')} if value('bag') else {'label': 'launch'})
-        recorder = Node(package='saw_ros', executable='recorder', name='recorder',
+        recorder = Node(package='saw_ros', executable='recorder', exec_name='recorder',
                         output='screen', parameters=[recorded], prefix=batch)
         actions += [probe, RegisterEventHandler(OnProcessExit(target_action=probe,
                                                               on_exit=[recorder]))]
