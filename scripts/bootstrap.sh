@@ -56,28 +56,5 @@ if [ "$(cat "$VENV/.saw_ros_stamp" 2>/dev/null)" != "$(stamp_of)" ]; then
   stamp_of > "$VENV/.saw_ros_stamp"
 fi
 
-# tf2_msgs (for /tf, /tf_static) is not among the ROS wheels: build its one message, TFMessage,
-# with the rosidl generators of requirements.txt into the venv (about 15 s, once; again only when
-# third_party/tf2_msgs changes). A ROS install has the real package and never builds this one.
-TF2_SRC="$ROOT/third_party/tf2_msgs"
-tf2_stamp() { cat "$TF2_SRC/CMakeLists.txt" "$TF2_SRC/package.xml" "$TF2_SRC"/msg/*.msg | sha256sum | cut -c1-16; }
-if [ "$(cat "$VENV/.tf2_msgs_stamp" 2>/dev/null)" != "$(tf2_stamp)" ]; then
-  for tool in cmake cc c++; do
-    if ! command -v "$tool" >/dev/null; then
-      echo "[bootstrap] error: building tf2_msgs (the /tf message type) needs cmake and a C/C++ compiler: '$tool' not found (Debian: apt-get install cmake g++)" >&2
-      exit 1
-    fi
-  done
-  echo "[bootstrap] building tf2_msgs/TFMessage into $VENV (third_party/tf2_msgs)" >&2
-  TF2_BUILD="$VENV/build/tf2_msgs"
-  rm -rf "$TF2_BUILD" && mkdir -p "$TF2_BUILD"
-  if ! { PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" cmake -S "$TF2_SRC" -B "$TF2_BUILD" \
-           -DCMAKE_INSTALL_PREFIX="$VENV" -DCMAKE_PREFIX_PATH="$VENV" \
-           -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release \
-         && PATH="$VENV/bin:$PATH" cmake --build "$TF2_BUILD" -j 2 \
-         && cmake --install "$TF2_BUILD"; } > "$TF2_BUILD.log" 2>&1; then
-    echo "[bootstrap] error: building tf2_msgs failed: see the last lines of $TF2_BUILD.log" >&2
-    exit 1
-  fi
-  tf2_stamp > "$VENV/.tf2_msgs_stamp"
-fi
+# tf2_msgs (for /tf, /tf_static) is not among the ROS wheels: built into the venv, once.
+"$ROOT/scripts/build_tf2_msgs.sh" "$VENV"
