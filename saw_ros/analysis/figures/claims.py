@@ -24,7 +24,8 @@ from typing import List, Optional
 import numpy as np
 
 from saw_ros.analysis.figures import sweeps
-from saw_ros.analysis.figures.sweeps import COFS, Data, DEFAULT_KT, FIG10_SLOPES, FIG21_KT, GAPS_MM
+from saw_ros.analysis.figures.sweeps import (COFS, Data, DEFAULT_GAP_MM, DEFAULT_KT, DEFAULT_MU,
+                                             FIG10_SLOPES, FIG21_KT, GAPS_MM)
 from saw_ros.core import worm as worm_model
 from saw_ros.core.statics import minimal_normal_forces, top_surface_needed_above
 
@@ -135,7 +136,8 @@ def ar_claims(data: Data) -> List[Claim]:
              'shapes the slip. At the stiffness the worm calibration implies for Figure 21 '
              f'({FIG21_KT:.0f} N/m) our vertical AR comes closer (see "ours").')
     return [
-        Claim('A1', 'Sec. 8, Fig. 21', 'wave AR on the level (defaults: 45 mm, 1082 N/m, COF 1)',
+        Claim('A1', 'Sec. 8, Fig. 21', f'wave AR on the level (defaults: {DEFAULT_GAP_MM:g} mm, '
+              f'{DEFAULT_KT:g} N/m, COF {DEFAULT_MU:g})',
               '0.72', _f(level) + at532, '+-10 % rel.', _rel(level, 0.72) <= AR_REL_TOL,
               why='See A2.'),
         Claim('A2', 'Sec. 8, Fig. 21', 'wave AR climbing vertically (defaults)', '0.61',
