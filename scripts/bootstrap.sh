@@ -46,7 +46,7 @@ if [ "$(cat "$VENV/.saw_ros_stamp" 2>/dev/null)" != "$(stamp_of)" ]; then
   done
   # Editable installs skip data_files: the ament index marker and package.xml, by hand.
   cp "$ROOT/resource/saw_ros" "$VENV/share/ament_index/resource_index/packages/saw_ros"
-  cp "$ROOT/package.xml" "$VENV/share/saw_ros/package.xml"
+  ln -sf "$ROOT/package.xml" "$VENV/share/saw_ros/package.xml"    # a link: never stale
   ln -sfn "$ROOT/msg_config" "$VENV/share/saw_ros/msg_config"
   # ...and setup.py's other data_files, the same layout as a colcon install.
   ln -sfn "$ROOT/launch" "$VENV/share/saw_ros/launch"
