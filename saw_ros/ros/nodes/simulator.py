@@ -80,13 +80,6 @@ FROZEN = {
 }
 
 
-def _finite_non_negative(name: str, value, what: str) -> float:
-    """Return ``value`` as a float, or raise ParameterError: it must be a finite ``what``."""
-    if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise ParameterError(f'{name} = {value!r} is invalid: must be a finite {what}')
-    return float(value)
-
-
 class SimulatorNode(Node):
     """One SAW robot between two compliant surfaces, stepped in (scaled) real time."""
 
@@ -97,8 +90,9 @@ class SimulatorNode(Node):
                                              on_change=self._on_scenario)
             self.sim = Simulator(self.params.scenario)
             declare_spec(self, OWN_PARAMETERS, read_only=False)
-            self._rtf = self._check_rtf(self.get_parameter('real_time_factor').value)
-            self._duration = self._check_duration(self.get_parameter('duration').value)
+            # (declare_spec checked them, and checks every change: core.params.check_value)
+            self._rtf = float(self.get_parameter('real_time_factor').value)
+            self._duration = float(self.get_parameter('duration').value)
             self.dt_ns = conv.dt_nanoseconds(self.params.scenario.integration.dt)
         except (ParameterError, ParameterException, ValueError) as exc:
             # ParameterException: rclpy refused a start-up value (wrong type, outside the
@@ -106,7 +100,6 @@ class SimulatorNode(Node):
             raise NodeFailure(f'invalid parameters: {exc}') from exc
         self._wait_subscribers = int(self.get_parameter('wait_for_subscribers').value)
         self.started = self._wait_subscribers <= 0
-        self.add_on_set_parameters_callback(self._validate_own)
         self.add_post_set_parameters_callback(self._apply_own)
         self.add_on_set_parameters_callback(self._validate_integrable)
 
@@ -172,31 +165,6 @@ class SimulatorNode(Node):
             f'{math.degrees(scenario.conditions.slope):g} deg')
 
     # -- parameters ----------------------------------------------------------------------------
-    @staticmethod
-    def _check_rtf(value) -> float:
-        return _finite_non_negative('real_time_factor', value,
-                                    'number >= 0 (0 = as fast as possible)')
-
-    @staticmethod
-    def _check_duration(value) -> float:
-        return _finite_non_negative('duration', value,
-                                    'number of seconds >= 0 (0 = run until stopped)')
-
-    def _validate_own(self, parameters) -> SetParametersResult:
-        for p in parameters:
-            if p.name == 'wait_for_subscribers':
-                reason = 'wait_for_subscribers only applies at start-up'
-                return SetParametersResult(successful=False, reason=reason)
-            try:
-                if p.name == 'real_time_factor':
-                    self._check_rtf(p.value)
-                elif p.name == 'duration':
-                    self._check_duration(p.value)
-            except ParameterError as exc:
-                self.get_logger().warning(f'parameter change refused: {exc}')
-                return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
-
     def _validate_integrable(self, parameters) -> SetParametersResult:
         """Refuse, with the limit, contacts the step cannot integrate (core.stability)."""
         scenario, _ = self.params.check(parameters)
