@@ -19,18 +19,20 @@ of its own, with a known answer:
 
 The scene frame is the picture of a fixed camera (``camera()``: a ``CameraModel`` of the
 picture's size and scale, level); ``truth(t)`` gives the markers' surface-frame centres and
-``mean_speed`` the robot's true mean speed over whole wave cycles. Pure numpy and OpenCV.
+``mean_speed`` the robot's true mean speed over whole wave cycles; ``track_shot`` tracks a shot
+as ``saw-ros track`` does and holds the result against them. Pure numpy and OpenCV.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Iterator, Tuple
+from typing import Iterator, List, Optional, Tuple
 
 import cv2
 import numpy as np
 
 from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.tracker import Tracker, TrackerConfig
 
 MARKER_BGR = (175, 70, 250)        # RGB (250, 70, 175): a pink that is not the renderer's
 SHIFT = 4                          # fixed-point bits for sub-pixel drawing
@@ -265,3 +267,60 @@ class Shot:
     @property
     def size(self) -> Tuple[int, int]:
         return self.width, self.height
+
+
+@dataclass
+class ShotResult:
+    """What the tracker made of a shot, against the truth."""
+
+    speed: Optional[float]          # the speed it would print: steady speed of its last pair, m/s
+    speed_error_pct: float          # against the true mean speed (inf without a speed)
+    visible_frames: int             # both markers fully in view
+    ok_visible_frames: int          # ... and both measured on the marker (within its radius)
+    wrong_frames: int               # ok frames with a marker off by more than its radius
+    warnings: List[str]
+    notes: List[str]
+    tracker: Tracker
+
+    @property
+    def ok_frames_pct(self) -> float:
+        return 100.0 * self.ok_visible_frames / self.visible_frames if self.visible_frames \
+            else 0.0
+
+    @property
+    def silent_wrong(self) -> bool:
+        """Whether a speed more than 2 % wrong would be printed without a warning."""
+        return self.speed is not None and self.speed_error_pct > 2.0 and not self.warnings
+
+
+def track_shot(shot: Shot, slope_known: bool = False, config: TrackerConfig = TrackerConfig(),
+               camera: Optional[CameraModel] = None) -> ShotResult:
+    """
+    Track a shot as ``saw-ros track`` does (the scale given), and hold it against the truth.
+
+    ``slope_known``: the track's slope given (True) or taken from the motion (the default of the
+    command); ``camera``: the camera the tracker is given, if not the shot's fixed camera.
+    """
+    tracker = Tracker(camera or shot.camera(slope_known), config, slope_known=slope_known)
+    visible = ok_visible = wrong = 0
+    results = []
+    for _, t, frame in shot.frames():
+        res = tracker.update(frame, t)
+        results.append(res)
+        seen = shot.visible(t, 'front') and shot.visible(t, 'back')
+        right = False
+        if res.ok:
+            # The truth in the tracker's surface frame: the track's when the slope is used.
+            front, back = shot.truth(t)
+            right = max(abs(res.front - front), abs(res.back - back)) <= \
+                0.5 * shot.marker_diameter
+            wrong += not right
+        visible += seen
+        ok_visible += seen and right
+    since = tracker.switched_at if tracker.switched_at is not None else -math.inf
+    speed = next((r.steady_speed for r in reversed(results)
+                  if r.steady_speed is not None and r.t > since), None)
+    error = math.inf if speed is None else \
+        100.0 * abs(speed - shot.mean_speed()) / shot.mean_speed()
+    return ShotResult(speed, error, visible, ok_visible, wrong, tracker.warnings, tracker.notes,
+                      tracker)

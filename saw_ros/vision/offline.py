@@ -2,22 +2,26 @@
 Tracking a video file offline: what ``saw-ros track`` and ``saw-ros campaign --videos`` run.
 
 ``track_video`` feeds every frame of a file to one ``Tracker``; ``measure_scale`` finds the
-scale (px per metre) from the markers' known spacing with a first pass (the pair is picked out by
-the robot's line, size, colour and motion, the spacing in pixels not being known yet).
+scale (px per metre) from the markers' known spacing with a first pass (the same acquisition: the
+pair is picked out by its colour, roundness, size and motion, the spacing in pixels not being
+known yet), from at least MIN_SCALE_FRAMES frames.
 
-Both take a video file's path or any frame source: an object with ``size`` (width, height) and
-``frames()`` yielding (index, t in s, bgr8 frame), such as a recording's camera stream
-(saw_ros.analysis.bag_frames.BagFrames: raw or JPEG).
+Both take a video file's path, a folder of frame images (with ``fps``), or any frame source: an
+object with ``size`` (width, height) and ``frames()`` yielding (index, t in s, bgr8 frame), such
+as a recording's camera stream (saw_ros.analysis.bag_frames.BagFrames: raw or JPEG) or
+``footage.Shot``.
 """
 from __future__ import annotations
 
 import dataclasses
+import os
 
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import scale_from_spacing, Tracker, TrackerConfig
-from saw_ros.vision.video import read_frames, video_info
+from saw_ros.vision.video import FrameFolder, read_frames, video_info
 
 SCALE_FRAMES = 120      # ok frames the first pass measures the marker spacing on
+MIN_SCALE_FRAMES = 30   # fewer: no scale (one frame of a wrong pair gave a scale 4.4x too large)
 
 
 class VideoFile:
@@ -37,18 +41,25 @@ class VideoFile:
         return str(self.path)
 
 
+def open_source(path, fps: float = 0.0):
+    """Return a frame source for a video file or a folder of frame images (``fps`` needed)."""
+    return FrameFolder(path, fps) if os.path.isdir(path) else VideoFile(path, fps)
+
+
 def track_video(source, camera_kw: dict, config: TrackerConfig, fps: float = 0.0,
-                stop_after_ok: int = 0):
+                stop_after_ok: int = 0, slope_known: bool = True):
     """
     Return the FrameResults of every frame of a video (or until ``stop_after_ok`` ok frames).
 
-    ``source``: a video file's path, or a frame source (module docstring). The camera's size
-    comes from the source.
+    ``source``: a video file's path, a folder of frames, or a frame source (module docstring).
+    The camera's size comes from the source. ``slope_known``: ``camera_kw``'s slope is the
+    track's; False: the track's direction comes from the markers' motion.
     """
     if not hasattr(source, 'frames'):
-        source = VideoFile(source, fps)
+        source = open_source(source, fps)
     width, height = source.size
-    tracker = Tracker(CameraModel(width=width, height=height, **camera_kw), config)
+    tracker = Tracker(CameraModel(width=width, height=height, **camera_kw), config,
+                      slope_known=slope_known)
     results = []
     for _, t, frame in source.frames():
         results.append(tracker.update(frame, t))
@@ -58,14 +69,24 @@ def track_video(source, camera_kw: dict, config: TrackerConfig, fps: float = 0.0
 
 
 def measure_scale(source, camera_kw: dict, config: TrackerConfig, spacing: float,
-                  fps: float = 0.0):
+                  fps: float = 0.0, slope_known: bool = True):
     """
     (px per metre, frames, spread px) making the markers ``spacing`` m apart.
 
     From the first SCALE_FRAMES frames with both markers (the spacing in pixels is not known yet:
-    the pair is picked out by the robot's line, size, colour and motion), or None.
+    the pair is picked out by its colour, shape, size and motion, as when tracking), or None
+    without any. ValueError when fewer than MIN_SCALE_FRAMES frames had both markers: a scale
+    from a handful of frames may be a wrong pair's.
     """
     blind = dataclasses.replace(config, marker_spacing=None, marker_diameter=None)
     kw = dict(camera_kw, scale=1000.0)          # a placeholder: pixels are what is measured
-    results, _ = track_video(source, kw, blind, fps, stop_after_ok=SCALE_FRAMES)
-    return scale_from_spacing(results, spacing)
+    results, tracker = track_video(source, kw, blind, fps, stop_after_ok=SCALE_FRAMES,
+                                   slope_known=slope_known)
+    if tracker.switched_at is not None:         # frames of a static pair dropped: not these
+        results = [r for r in results if r.t > tracker.switched_at]
+    measured = scale_from_spacing(results, spacing)
+    if measured is not None and measured[1] < MIN_SCALE_FRAMES:
+        raise ValueError(f'the marker spacing was measured on {measured[1]} frames only (at '
+                         f'least {MIN_SCALE_FRAMES} needed for a scale): give --px-per-m, or '
+                         'a clip in which both markers are in view for longer')
+    return measured

@@ -92,8 +92,9 @@ def add_arguments(p):
     g.add_argument('--px-per-m', type=float, default=None,
                    help='pixels per metre in the plane of motion (a ruler in the picture); '
                         'without it --marker-spacing-m sets the scale')
-    g.add_argument('--slope-deg', type=float, default=0.0,
-                   help='slope of the surfaces as the level camera sees them, degrees')
+    g.add_argument('--slope-deg', type=float, default=None,
+                   help='slope of the surfaces as the level camera sees them, degrees (default: '
+                        "the direction of the markers' own motion, printed)")
     g.add_argument('--center-x', type=float, default=CameraModel.center_x,
                    help=f'surface-frame x seen at the image centre, m (an origin; speeds do not '
                         f'depend on it; the camera node default is {CameraModel.center_x:g})')
@@ -131,7 +132,7 @@ def _cells(k, r):
 
 
 def _source(path, fps: float):
-    """Return the frames to track: a recording's camera stream, or the video file."""
+    """Return the frames to track: a recording's camera stream, a folder of frames, a video."""
     from saw_ros.analysis.bag_frames import BagFrames
     p = Path(path)
     # A killed recorder's bag has no metadata.yaml yet: its .mcap files make it a bag too.
@@ -146,6 +147,20 @@ def _source(path, fps: float):
         if missing:           # tracked all the same: say that the end of the run is not there
             print(f'saw-ros track: warning: {missing}', file=sys.stderr)
         return source
+    if p.is_dir():
+        from saw_ros.vision.video import FrameFolder, frame_files, IMAGE_EXTENSIONS
+        try:
+            frame_files(p)
+        except VideoError:
+            raise UserError(f'VIDEO {path}: is a folder with no frame images '
+                            f'({", ".join(IMAGE_EXTENSIONS)}): give a video file, a recording '
+                            'or a folder of frames') from None
+        if not fps > 0:
+            raise UserError(f'VIDEO {path}: a folder of frames says no frame rate: give --fps')
+        try:
+            return FrameFolder(p, fps)
+        except VideoError as exc:
+            raise UserError(f'VIDEO {path}: {exc}') from None
     return video_input(path, 'VIDEO', fps)
 
 
@@ -159,7 +174,8 @@ def run(args):
         spec_number(args.px_per_m, '--px-per-m', scale)
     number(args.fps, '--fps', 'Hz (0: the rate the file says)', 0.0, None)
     (_, _, slope), = spec_entries(CameraModel, ('slope',))
-    spec_number(args.slope_deg, '--slope-deg', slope, math.pi / 180.0, 'deg')
+    if args.slope_deg is not None:
+        spec_number(args.slope_deg, '--slope-deg', slope, math.pi / 180.0, 'deg')
     number(args.center_x, '--center-x', 'm')
     number(args.center_y, '--center-y', 'm')
     if args.csv is not None:
@@ -171,7 +187,8 @@ def run(args):
                         "picture) or --marker-spacing-m (the markers' distance on the robot)")
     if (args.dist_coeffs is None) != (args.camera_matrix is None):
         raise UserError('--dist-coeffs and --camera-matrix go together (the lens calibration)')
-    camera_kw = {'slope': math.radians(args.slope_deg), 'center_x': args.center_x,
+    slope_known = args.slope_deg is not None
+    camera_kw = {'slope': math.radians(args.slope_deg or 0.0), 'center_x': args.center_x,
                  'center_y': args.center_y, 'mirror': args.mirror}
     if args.dist_coeffs is not None:
         camera_kw.update(dist_coeffs=args.dist_coeffs, dist_matrix=args.camera_matrix)
@@ -181,7 +198,8 @@ def run(args):
             scale = args.px_per_m
             scale_text = f'scale: {scale:g} px/m (--px-per-m)'
         else:
-            measured = measure_scale(source, camera_kw, config, config.marker_spacing)
+            measured = measure_scale(source, camera_kw, config, config.marker_spacing,
+                                     slope_known=slope_known)
             if measured is None:
                 raise UserError('the marker spacing could not be measured: no frame with both '
                                 'markers told apart (try --roi around the track, or give '
@@ -191,7 +209,7 @@ def run(args):
                           f'{config.marker_spacing:g} m (--marker-spacing-m; median of {n} '
                           f'frames, spread +-{spread:.2f} px)')
         results, tracker = track_video(Progress(source, args.quiet), dict(camera_kw, scale=scale),
-                                       config)
+                                       config, slope_known=slope_known)
     except (VideoError, ValueError) as exc:
         raise UserError(str(exc)) from exc
     if args.csv is not None:
@@ -201,11 +219,22 @@ def run(args):
             for k, r in enumerate(results):
                 w.writerow(_cells(k, r))
     c = tracker.counters
-    ok = [r for r in results if r.status is TrackStatus.OK]
+    # Frames of a static pair dropped for the moving robot are not the robot's.
+    since = -math.inf if tracker.switched_at is None else tracker.switched_at
+    ok = [r for r in results if r.status is TrackStatus.OK and r.t > since]
     print(f'{args.video}: {c.frames} frames over {results[-1].t:.3f} s; ok {c.ok}, '
           f'front lost {c.front_lost}, back lost {c.back_lost}, ambiguous {c.ambiguous}, '
-          f'longest run of bad frames {c.longest_not_ok}')
+          f'partly hidden {c.partial}, longest run of bad frames {c.longest_not_ok}')
     print(scale_text)
+    if slope_known:
+        print(f'slope: {args.slope_deg:g} deg (--slope-deg)')
+    elif tracker.slope_used is None:
+        print("slope: not known (the markers did not move far enough to show the track's "
+              'direction; give --slope-deg)')
+    for note in tracker.notes:
+        print(note)
+    for warning in tracker.warnings:
+        print(f'saw-ros track: warning: {warning}', file=sys.stderr)
     if args.px_per_m is not None and config.marker_spacing is not None:
         check = scale_from_spacing(results, 1.0)
         if check is not None:
@@ -223,8 +252,7 @@ def run(args):
         print(f'speed (instantaneous): mean {v.mean() * 100:.3f} cm/s, '
               f'min {v.min() * 100:.3f}, max {v.max() * 100:.3f}')
     print(f'pitch: mean {pitch.mean():.3f} deg, min {pitch.min():.3f}, max {pitch.max():.3f}')
-    steady = results[-1].steady_speed if results[-1].ok else next(
-        (r.steady_speed for r in reversed(ok) if r.steady_speed is not None), None)
+    steady = next((r.steady_speed for r in reversed(ok) if r.steady_speed is not None), None)
     if steady is None:
         print(f'steady-state speed: not available (the run is shorter than '
               f'{config.steady_window * config.steady_fill:g} s of tracked frames): track a '
