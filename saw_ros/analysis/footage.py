@@ -246,8 +246,8 @@ def run_footage(runs: Sequence[FootageRun], base: Optional[Scenario] = None, con
                                m.frames_ok, note=note)
         if not math.isfinite(m.speed):
             lost = (f'too few frames with both markers ({m.frames_ok} of {m.frames}) to measure '
-                    f'a speed: look at the tracking with saw-ros track {run.video} --plot '
-                    f'track.png')
+                    f'a speed: look at the tracking with saw-ros track {run.video} --px-per-m '
+                    f'{m.px_per_m:g} --plot track.png')
             cond.note = f'{cond.note}; {lost}' if cond.note else lost
         out.append(FootageResult(run, cond, m))
         if progress is not None:

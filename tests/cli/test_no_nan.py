@@ -52,4 +52,22 @@ def test_simulate_and_track_write_their_plots(tmp_path):
     assert (tmp_path / 'p' / 'track.png').stat().st_size > 10000
     assert 'plot: p/track.png' in done.stdout
     # Not a terminal: no progress bar lines in what a log or a pipe receives.
-    assert done.stderr == ''
+    assert '%|' not in done.stderr and '\r' not in done.stderr
+
+
+def test_footage_without_markers_says_there_is_no_measured_speed(tmp_path):
+    import numpy as np
+
+    from saw_ros.vision.video import VideoWriter
+    with VideoWriter(tmp_path / 'black.mp4', 30.0, (320, 180)) as w:
+        for _ in range(30):
+            w.write(np.zeros((180, 320, 3), np.uint8))
+    (tmp_path / 'manifest.csv').write_text('video,slope_deg,voltage_V,px_per_m\n'
+                                           'black.mp4,0,6,600\n')
+    done = _saw_ros(['campaign', '--videos', 'manifest.csv', '--out', 'out'], tmp_path)
+    assert 'nan' not in done.stdout.lower() and 'Traceback' not in done.stderr
+    assert 'measured no speed (0/30 frames ok)' in done.stdout
+    assert 'why: too few frames with both markers (0 of 30)' in done.stdout
+    assert 'saw-ros track black.mp4 --px-per-m 600 --plot track.png' in done.stdout
+    assert 'overall: not computed: no row here has both speeds' in done.stdout
+    assert done.returncode == 1

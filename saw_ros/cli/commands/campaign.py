@@ -111,7 +111,8 @@ def run_videos(args):
 def _summary(summary, what: str, spec: str, paths) -> int:
     """Print the means and the files; exit code 1 when a row could not be compared."""
     missing = summary['rows'] - summary['compared']
-    over = f' (over {summary["compared"]} of {summary["rows"]} rows)' if missing else ''
+    over = (f' (over {summary["compared"]} of {summary["rows"]} rows)' if
+            missing and summary['compared'] else '')
     why = 'not computed: no row here has both speeds (see why above)'
     for v, e in summary['mean_relative_error_by_voltage'].items():
         print(f'  {v:g} V: mean relative error ({what}) {shown(e, spec, " %", why, 100)}')
