@@ -213,6 +213,7 @@ def run(args):
     except (VideoError, ValueError) as exc:
         raise UserError(str(exc)) from exc
     if args.csv is not None:
+        args.csv.parent.mkdir(parents=True, exist_ok=True)
         with open(args.csv, 'w', newline='') as f:
             w = csv.writer(f)
             w.writerow(COLUMNS)
