@@ -4,7 +4,8 @@ from glob import glob
 from setuptools import find_packages, setup
 
 package_name = 'saw_ros'
-NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'player', 'video_source')
+NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'player', 'video_source',
+         'speed_controller')
 
 setup(
     name=package_name,

@@ -25,6 +25,7 @@ from typing import Sequence
 import numpy as np
 
 from saw_ros.core.params import ConditionParams, MotorParams, ParameterError, spec_entries
+from saw_ros.core.params import spec_meta
 
 # The tops of motor.voltage's and conditions.frequency's ranges, V and Hz.
 VOLTAGE_LIMIT = float(next(spec_entries(MotorParams, ['voltage']))[2]['high'])
@@ -111,3 +112,30 @@ class SpeedPI:
 
     def reset(self) -> None:
         self.integral = 0.0
+
+
+# The speed controller's parameters (name, default, spec metadata): the speed_controller node
+# declares them, saw-ros demo --controller checks its flag against them.
+FEEDBACKS = ('tracking', 'ground_truth', 'helix')
+
+CONTROLLER_PARAMETERS = (
+    ('target_speed', 0.05, spec_meta('m/s', 'robot speed to hold along the surfaces (+ forward)',
+                                     -0.5, 0.5)),
+    ('feedback', 'tracking', spec_meta('', 'what the speed is measured from', choices=FEEDBACKS,
+                                       read_only=True)),
+    ('kp', 40.0, spec_meta('V s/m', 'proportional gain: volts per m/s of speed error', 0.0,
+                           1e4)),
+    ('ki', 80.0, spec_meta('V/m', 'integral gain: volts per metre of accumulated error', 0.0,
+                           1e5)),
+    ('feed_forward', 0.0, spec_meta('V', 'voltage added to the PI output (the voltage that gives '
+                                         'the target on the level, if known); 0 = none', 0.0,
+                                    VOLTAGE_LIMIT)),
+    ('voltage_min', 0.0, spec_meta('V', 'lowest voltage commanded', 0.0, VOLTAGE_LIMIT)),
+    ('voltage_max', 12.0, spec_meta('V', 'highest voltage commanded', 0.0, VOLTAGE_LIMIT)),
+    ('rate', 60.0, spec_meta('Hz', 'control updates per second of feedback time with the 1 kHz '
+                                   'feedbacks (ground_truth, helix); tracking updates per frame',
+                             0.0, 1000.0, low_open=True, read_only=True)),
+    ('advance_ratio', 0.754, spec_meta(
+        '', "helix feedback: robot speed over v_theory (the level AR of the paper's set-up, "
+            'docs/fidelity.md)', 0.0, 1.5, low_open=True)),
+)

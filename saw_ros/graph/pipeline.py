@@ -21,6 +21,10 @@ from saw_ros.interface import topics
 
 
 MATCH_TIMEOUT = 20.0     # s; then the run goes on anyway (and the bench reports what was lost)
+# The speed controller in the graph (docs/drive.md): the motor's voltage until its first command,
+# and how long the simulator waits for commands before handing the helix back to motor.voltage.
+CONTROLLER_START_VOLTAGE = 6.0
+CONTROLLER_TIMEOUT = 2.0
 # Nodes whose readiness (saw_ros.ros.ready, on /saw/ready) the recorder waits for.
 READY_NODES = ('camera', 'comparison', 'vision')
 
@@ -61,15 +65,27 @@ def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
                     scenario: Optional[Dict[str, object]] = None, record: bool = True,
                     camera: Optional[Dict[str, object]] = None,
                     report_path: Optional[Path] = None,
-                    reference_file: Optional[Path] = None) -> Dict[str, Dict[str, object]]:
+                    reference_file: Optional[Path] = None,
+                    controller: Optional[Dict[str, object]] = None
+                    ) -> Dict[str, Dict[str, object]]:
     """
     Return the main job's nodes in start order, each with its ROS parameters.
 
     Simulator, comparison, vision and camera start together; the recorder (not listed: its
     ``output`` and ``topics`` are the caller's) starts once READY_NODES said ready. One table for
     ``run_pipeline`` and launch/saw.launch.py.
+
+    ``controller``: also the speed controller, with these parameters (its ``target_speed``...),
+    closing the loop through the camera (docs/drive.md): the simulator then models the motor
+    (at CONTROLLER_START_VOLTAGE until the first command, unless the scenario sets
+    motor.voltage) and hands the helix back to it only after CONTROLLER_TIMEOUT without
+    commands, which covers the tracker's first frames.
     """
     scenario = dict(scenario or {})
+    if controller is not None:
+        if float(scenario.get('motor.voltage', 0.0)) <= 0.0:
+            scenario['motor.voltage'] = CONTROLLER_START_VOLTAGE
+        scenario['command_timeout'] = CONTROLLER_TIMEOUT
     # The level camera sees the surfaces at the run's slope; the tracker must know it too.
     slope = float(scenario.get('conditions.slope', 0.0))
     return {
@@ -89,6 +105,7 @@ def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
         # use_sim_time node takes every /clock tick in Python (1000 callbacks a second each).
         'vision': {'slope': slope, 'image_transport': 'compressed'},
         'camera': dict(slope=slope, **dict(camera or {})),
+        **({'speed_controller': dict(controller)} if controller is not None else {}),
     }
 
 
@@ -96,7 +113,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                  scenario: Optional[Dict[str, object]] = None, record: bool = True,
                  bag_dir: Optional[Path] = None, camera: Optional[Dict[str, object]] = None,
                  reference_file: Optional[Path] = None, timeout: Optional[float] = None,
-                 progress=None, record_topics: Optional[List[str]] = None) -> PipelineRun:
+                 progress=None, record_topics: Optional[List[str]] = None,
+                 controller: Optional[Dict[str, object]] = None) -> PipelineRun:
     """
     Run the graph once; always stops every process it started (also on Ctrl-C).
 
@@ -112,7 +130,7 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     # No video file from the camera: the recording holds the frames (compressed), and encoding
     # an mp4 beside the JPEGs cost the live graph real time (saw-ros bag video makes it after).
     node_params = node_parameters(duration, real_time_factor, scenario, record, camera,
-                                  report_path, reference_file)
+                                  report_path, reference_file, controller)
     nodes: List[ManagedProcess] = []
     codes: Dict[str, int] = {}
     start = time.monotonic()

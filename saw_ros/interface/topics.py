@@ -20,7 +20,7 @@ from typing import List, Tuple
 class Topic:
     name: str
     type: str           # 'package/msg/Name'  # noqa: A003
-    qos: str            # profile name: stream, clock, image, tracking, latched
+    qos: str            # profile name: stream, clock, image, tracking, latched, command
     publisher: str      # node name (several: 'camera, comparison')
     rate: str
     frame: str          # '' when the topic has no frame
@@ -35,6 +35,7 @@ CONTACTS = '/saw/contacts'
 CONTACT_WRENCH = '/saw/contact_wrench'
 JOINT_STATES = '/saw/joint_states'
 MOTOR = '/saw/motor'
+MOTOR_COMMANDS = '/saw/motor_controller/commands'
 IMAGE = '/saw/camera/image_raw'
 IMAGE_COMPRESSED = '/saw/camera/image_raw/compressed'
 CAMERA_INFO = '/saw/camera/camera_info'
@@ -71,6 +72,10 @@ TOPICS: Tuple[Topic, ...] = (
           'base_link', 'helix phase, speed and motor torque (effort), and the links'),
     Topic(MOTOR, 'sensor_msgs/msg/BatteryState', 'tracking', 'simulator', '100 Hz', 'base_link',
           'motor supply voltage and current (negative: drawn; NaN at constant frequency)'),
+    Topic(MOTOR_COMMANDS, 'std_msgs/msg/Float64MultiArray', 'command', 'speed_controller',
+          '60 Hz (speed_controller), or yours', '',
+          "the helix's drive: [voltage V] with a motor, [frequency Hz] without "
+          '(ros2_control forward-command convention; saw_ros.ros.command)'),
     Topic(IMAGE, 'sensor_msgs/msg/Image', 'image', 'camera', '60 Hz', 'saw_camera',
           'virtual camera frames, bgr8 1280x720', recorded=False),
     Topic(IMAGE_COMPRESSED, 'sensor_msgs/msg/CompressedImage', 'image', 'camera', '60 Hz',

@@ -70,7 +70,13 @@ def image_publisher_qos() -> QoSProfile:
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-_PROFILES = {'stream': STREAM_QOS, 'clock': CLOCK_QOS, 'image': IMAGE_QOS,
+# Commands (saw_ros.ros.command): reliable and volatile, shallow. A late joiner must not be
+# handed old commands (transient-local would replay them), and only the newest one counts.
+COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+
+_PROFILES = {'command': COMMAND_QOS, 'stream': STREAM_QOS, 'clock': CLOCK_QOS, 'image': IMAGE_QOS,
              'tracking': with_depth(STREAM_QOS, TRACKING_DEPTH), 'latched': LATCHED_QOS}
 
 

@@ -123,7 +123,7 @@ def test_viewer_configs_name_our_topics():
     layout = json.loads((docs / 'foxglove_layout.json').read_text())
     text = json.dumps(layout)
     for name in (table.MARKERS, table.TRACKING_MARKERS, table.IMAGE_COMPRESSED, table.COMPARISON,
-                 table.TWIST, table.TRACKING_TWIST_SMOOTHED):
+                 table.TWIST, table.TRACKING_TWIST_SMOOTHED, table.MOTOR_COMMANDS, table.MOTOR):
         assert name in text and name in table.BY_NAME
     assert layout['configById']['3D!saw_markers']['followTf'] == 'surface'
     rviz = (docs / 'saw_ros.rviz').read_text()

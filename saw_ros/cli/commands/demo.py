@@ -16,9 +16,10 @@ import time
 from saw_ros.analysis.bag_frames import bag_video
 from saw_ros.analysis.report import format_comparison, write_report
 from saw_ros.bag.reader import BagReadError
-from saw_ros.cli.checks import number, output_dir
+from saw_ros.cli.checks import number, output_dir, spec_number
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
 from saw_ros.cli.errors import UserError
+from saw_ros.core.drive import CONTROLLER_PARAMETERS
 from saw_ros.graph.pipeline import PipelineError, run_pipeline
 from saw_ros.interface.config import config_path
 
@@ -34,6 +35,11 @@ def add_arguments(p):
                    help='simulated seconds per wall second (0.5)')
     p.add_argument('--out', type=Path, help='output folder (default out/demo_<date-time>)')
     p.add_argument('--no-video', action='store_true', help='do not write camera.mp4')
+    p.add_argument('--controller', action='store_true',
+                   help='also run speed_controller, holding --target-cm-s through the camera '
+                   '(docs/drive.md)')
+    p.add_argument('--target-cm-s', type=float, default=5.0,
+                   help="the controller's target speed, cm/s (5)")
     add_scenario_arguments(p)
 
 
@@ -44,20 +50,26 @@ def run(args):
     # The simulator node's range for its real_time_factor.
     number(args.real_time_factor, '--real-time-factor', '', 0.0, None,
            description='simulated seconds per wall second, 0 = as fast as possible')
+    controller = None
+    if args.controller:
+        meta = next(m for name, _, m in CONTROLLER_PARAMETERS if name == 'target_speed')
+        spec_number(args.target_cm_s, '--target-cm-s', meta, 0.01, 'cm/s', 'target_speed')
+        controller = {'target_speed': args.target_cm_s / 100.0}
     if args.out is not None:
         output_dir(args.out, '--out')
     defaults = Scenario().flat()
     changed = {k: v for k, v in scenario.flat().items()
                if v != defaults[k] and k != 'integration.duration'}
     out = args.out or Path('out') / time.strftime('demo_%Y-%m-%d_%H-%M-%S')
-    print(f'saw-ros demo: simulator, camera, vision, comparison, recorder; {args.duration:g} s '
+    print(f'saw-ros demo: simulator, camera, vision, comparison, recorder'
+          f'{", speed_controller" if controller else ""}; {args.duration:g} s '
           f'of simulated time at real-time factor {args.real_time_factor:g}; output {out}',
           flush=True)
     spinner = _Spinner(args.duration / max(args.real_time_factor, 0.1))
     try:
         result = run_pipeline(out, args.duration, args.real_time_factor, changed,
                               reference_file=config_path('reference_paper.csv'),
-                              progress=spinner)
+                              progress=spinner, controller=controller)
     except PipelineError as exc:
         spinner.close()
         print(f'saw-ros demo: {exc}', file=sys.stderr)

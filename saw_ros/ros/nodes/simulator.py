@@ -49,6 +49,7 @@ from saw_ros.interface import frames, scene_markers, topics, urdf
 from saw_ros.ros import conversions as conv
 from saw_ros.ros import markers
 from saw_ros.ros import tf
+from saw_ros.ros.command import CommandInput
 from saw_ros.ros.params import declare_spec
 from saw_ros.ros.params import ScenarioParameters, SIMULATOR_EXCLUDED
 from saw_ros.ros.qos import message_class, publisher_profile
@@ -137,6 +138,9 @@ class SimulatorNode(Node):
         self._pub_description.publish(String(data=urdf.urdf(scenario.robot)))
 
         self.create_service(Trigger, '~/reset', self._on_reset)
+        # The drive from your own node (saw_ros.ros.command): /saw/motor_controller/commands.
+        self.commands = CommandInput(self, self.sim,
+                                     float(self.get_parameter('command_timeout').value))
         # Faults (a divergence, a change the state cannot take) and the recoveries: on
         # /diagnostics when they happen and in a status every STATUS_PERIOD of simulated time.
         self._pub_diagnostics = self.create_publisher(
@@ -183,6 +187,8 @@ class SimulatorNode(Node):
                 self._rebase(time.monotonic())
             elif p.name == 'duration':
                 self._duration = float(p.value)
+            elif p.name == 'command_timeout':
+                self.commands.timeout = float(p.value)
 
     def _on_scenario(self, scenario) -> None:
         self.sim.set_scenarios([scenario])
@@ -280,6 +286,7 @@ class SimulatorNode(Node):
         if end >= 0:
             todo = min(todo, end - self.steps)
         todo = min(todo, MAX_BATCH)
+        self.commands.check_timeout()
         deadline = now + BATCH_BUDGET
         for _ in range(todo):
             self.step_and_publish()
@@ -306,6 +313,7 @@ class SimulatorNode(Node):
     def step_and_publish(self) -> None:
         """One physics step, then its six messages, all stamped (steps + 1) * dt."""
         sim = self.sim
+        self.commands.poll()
         try:
             sim.step()
         except DivergenceError as exc:
@@ -341,7 +349,7 @@ class SimulatorNode(Node):
             float(sim.phase[0]), omega, angles, rates, ns,
             float(sim.motor_torque[0]) if driven else None))
         if self.steps % self._motor_every == 0:
-            volts = self.params.scenario.motor.voltage if driven else 0.0
+            volts = float(sim.motor.voltage[0]) if driven else 0.0   # the commanded one too
             self._pub_motor.publish(conv.motor_msg(volts, float(sim.current[0]), ns,
                                                    out=self._motor_msg))
         if self._markers.due(ns):
@@ -361,6 +369,10 @@ class SimulatorNode(Node):
         """
         self.get_logger().info(f'stopped after {self.steps} steps (t = '
                                f'{self.steps * self.dt:.3f} s)')
+        if self.commands.refused:
+            self.get_logger().warning(
+                f'{self.commands.refused} command(s) on {topics.MOTOR_COMMANDS} were refused '
+                f'(not one finite value in range), {self.commands.applied} applied')
 
 
 def spin(node: SimulatorNode) -> None:
@@ -387,6 +399,10 @@ OWN_PARAMETERS = (
     ('markers_rate', markers.RATE, spec_meta(
         'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers per simulated second '
         '(at most one per step); 0 = none', 0.0, None, read_only=True)),
+    ('command_timeout', 0.5, spec_meta(
+        's', 'simulated time without a command on /saw/motor_controller/commands after which '
+        'the helix returns to its parameter (motor.voltage or conditions.frequency); 0 = the '
+        'last command holds until the next', 0.0, float(2 ** 31 - 1))),
     ('wait_for_subscribers', 0, spec_meta('', 'before the first step, wait until every topic has '
                                               'at least this many subscribers (tests, benchmarks, '
                                               'recordings that must see every step); 0 = start '
