@@ -15,7 +15,7 @@ through robot_state_publisher and /saw/joint_states, where one runs.
 from __future__ import annotations
 
 import math
-from typing import Tuple
+from typing import Sequence, Tuple
 
 SURFACE = 'surface'
 BASE_LINK = 'base_link'
@@ -28,7 +28,7 @@ def yaw_quaternion(theta: float) -> Tuple[float, float, float, float]:
     return 0.0, 0.0, math.sin(theta / 2.0), math.cos(theta / 2.0)
 
 
-def _quaternion(m) -> Tuple[float, float, float, float]:
+def _quaternion(m: Sequence[Sequence[float]]) -> Tuple[float, float, float, float]:
     """(x, y, z, w) of a proper rotation matrix (rows of a 3x3 nested sequence)."""
     trace = m[0][0] + m[1][1] + m[2][2]
     if trace > 0.0:

@@ -130,7 +130,7 @@ def urdf(robot: Optional[RobotParams] = None) -> str:
     return '\n'.join(lines)
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[List[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
     parser.add_argument('--write', metavar='PATH', help='write the default robot URDF here')
     args = parser.parse_args(argv)
