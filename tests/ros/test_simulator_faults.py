@@ -197,6 +197,11 @@ def test_hostile_values_are_refused_and_a_narrower_gap_resets(simulator, client)
     assert client.steps_on(200)
     ok, reason = client.set_parameter('conditions.gap', 0.045)      # and back
     assert ok, reason
+    # max_penetration just over what the start position needs, then back: the node steps on.
+    for value in (0.0075, 0.015):
+        ok, reason = client.set_parameter('surface.max_penetration', value)
+        assert ok, reason
+        assert client.steps_on(500), proc.output()[-3000:]
     assert client.steps_on(1000, timeout=5.0), proc.output()[-3000:]
     assert proc.returncode is None and 'Traceback' not in proc.output()
     assert 'robot reset to its initial state at t = ' in proc.output()
