@@ -217,7 +217,6 @@ class Simulator:
         self._rate_work = np.zeros((self.count, tips), complex)
         self.motor = MotorLaw([s.motor for s in scenarios], self.dt)
         self._constant_omega = self._omega_dt / self.dt
-        # A helix faster than this was driven by something no surface can supply.
         if self.commanded_voltage is not None:
             self.motor.set_voltage(self.commanded_voltage)
         self._set_runaway()
@@ -286,42 +285,6 @@ class Simulator:
             self.command_voltage(self.commanded_voltage)
         else:
             self._set_runaway()
-
-    def _motor_step(self) -> None:
-        """
-        Step the helix speed: the motor against the contacts of this step (docs/motor.md).
-
-        tau_load = -sum over tips of F . dr/dphase (F the surface's force on the tip, world
-        axes; dr/dphase the body-frame rate turned by the pitch): the torque the helix needs
-        to move the tips against their contact forces.
-        """
-        rate = self.rate_table.at(self.phase, out=self._rate, work=self._rate_work)
-        rate *= self._rot
-        contacts = self.contacts
-        # F = (Ft, -side Fn): F . r' = Ft r'x - side Fn r'y.
-        np.multiply(contacts.tangential, rate.real, out=self._work)
-        load = -(self._work @ self._ones)
-        np.multiply(contacts.normal, rate.imag, out=self._work)
-        load += self._work @ self._side
-        omega = self.omega
-        new, torque, friction = self.motor.step(omega, load)
-        # Scenarios of the batch without a motor keep their constant speed (and have no motor
-        # torque, current or friction to report).
-        new = np.where(self.driven, new, self._constant_omega)
-        torque = np.where(self.driven, torque, np.nan)
-        friction = np.where(self.driven, friction, np.nan)
-        self.motor_torque[:] = torque
-        self.current[:] = torque / self.motor.k
-        self.load_torque[:] = load
-        self.friction_torque[:] = friction
-        omega[:] = new
-        if not (np.abs(new) <= self._runaway).all():
-            i = int(np.argmax(~(np.abs(new) <= self._runaway)))
-            raise DivergenceError(
-                f'simulation diverged at t = {self.t:.3f} s (scenario {i}): the helix turned at '
-                f'{new[i] / TWO_PI:.3g} Hz, far beyond the no-load speed of its motor, '
-                f'{self.motor.ideal[i] / TWO_PI:.3g} Hz (load torque {load[i]:.3g} N m); '
-                f'reduce integration.dt or soften the surfaces')
 
     def _motor_step(self) -> None:
         """
