@@ -14,7 +14,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 import math
-from typing import Any, Dict, Iterable, Iterator, Optional, Tuple
+import numbers
+from typing import Any, Dict, Iterable, Iterator, Mapping, Optional, Tuple
 
 
 GRAVITY = 9.81           # m/s^2 (dynamics.GRAVITY)
@@ -65,7 +66,7 @@ def spec_entries(cls, names: Optional[Iterable[str]] = None
         yield name, f.default, dict(f.metadata)
 
 
-def range_text(meta: Dict[str, Any]) -> str:
+def range_text(meta: Mapping[str, Any]) -> str:
     """'[0, 179]', '(0, inf) m', ...: the allowed range of a spec() field, with its unit."""
     low, high = meta['low'], meta['high']
     left = '(' if meta['low_open'] or meta['low'] is None else '['
@@ -76,12 +77,13 @@ def range_text(meta: Dict[str, Any]) -> str:
     return f'{left}{lo}, {hi}{right}{unit}'
 
 
-def check_value(name: str, value: Any, meta: Dict[str, Any], default: Any = 0.0) -> Any:
+def check_value(name: str, value: Any, meta: Mapping[str, Any], default: Any = 0.0) -> Any:
     """
     Return ``value`` checked against the spec() metadata ``meta`` of parameter ``name``.
 
-    The one range check of every parameter: the Scenario's groups run it on each field, the ROS
-    nodes on their own parameters (``saw_ros.ros.params``). ``default`` gives the kind: an
+    The one range check of every parameter: the Scenario's groups and the vision dataclasses run
+    it on each field (``check_fields``), the ROS nodes on their own parameters
+    (``saw_ros.ros.params``). ``default`` gives the kind: an
     integer where the default is one, else a finite number, returned as a float; a value among
     ``meta['choices']`` where the metadata lists them. None, booleans and other kinds (strings,
     lists) without choices are returned unchecked. Raises ParameterError naming the parameter,
@@ -94,11 +96,13 @@ def check_value(name: str, value: Any, meta: Dict[str, Any], default: Any = 0.0)
     if choices is not None or value is None or isinstance(value, bool) or \
             isinstance(default, (bool, str, list, tuple)):
         return value
+    # (numbers.Integral and Real: numpy's integers and floats count too)
     if isinstance(default, int):
-        if not isinstance(value, int):
+        if not isinstance(value, numbers.Integral):
             raise ParameterError(f'{name} = {value!r} is invalid: must be an integer in '
                                  f'{range_text(meta)}')
-    elif not isinstance(value, (int, float)):
+        value = int(value)
+    elif not isinstance(value, numbers.Real):
         raise ParameterError(f'{name} = {value!r} is invalid: must be a number in '
                              f'{range_text(meta)}')
     else:
@@ -115,19 +119,29 @@ def check_value(name: str, value: Any, meta: Dict[str, Any], default: Any = 0.0)
     return value
 
 
+def check_fields(obj: Any, prefix: str = '') -> None:
+    """
+    Run ``check_value`` on every spec() field of the dataclass instance ``obj``.
+
+    Each field keeps its checked value (an integer given for a float becomes a float, frozen
+    dataclasses included); a refusal names the field ``prefix + name``.
+    """
+    for f in dataclasses.fields(obj):
+        if 'unit' not in f.metadata:
+            continue
+        value = getattr(obj, f.name)
+        checked = check_value(prefix + f.name, value, f.metadata, f.default)
+        if checked is not value:
+            object.__setattr__(obj, f.name, checked)
+
+
 class _Validated:
     """Mixin: checks every numeric field against its metadata range after construction."""
 
     section: str = ''
 
     def __post_init__(self):
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if not f.metadata:
-                continue
-            checked = check_value(f'{self.section}.{f.name}', value, f.metadata, f.default)
-            if checked is not value:
-                object.__setattr__(self, f.name, checked)
+        check_fields(self, f'{self.section}.')
         self._check()
 
     def _check(self):

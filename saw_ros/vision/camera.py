@@ -35,7 +35,7 @@ from typing import Optional, Tuple
 import cv2
 import numpy as np
 
-from saw_ros.core.params import spec
+from saw_ros.core.params import check_fields, spec
 
 # The paper's experiment was filmed at 60 fps (Sec. 6: nearly 60 measurements per wave cycle):
 # the virtual camera's frame rate unless told otherwise.
@@ -45,7 +45,7 @@ FPS = 60.0
 @dataclass(frozen=True)
 class CameraModel:
     # spec(): unit, range and description, for the camera node's parameters, its
-    # msg_config/camera.yaml and saw-ros render's options (ranges as __post_init__ checks them)
+    # msg_config/camera.yaml and saw-ros render's options; __post_init__ checks these ranges
     width: int = spec(1280, 'px', 'image width', 16, None)
     height: int = spec(720, 'px', 'image height', 16, None)
     scale: float = spec(1200.0, 'px/m', 'pixels per metre in the plane of motion', 0.0, None,
@@ -65,15 +65,7 @@ class CameraModel:
     dist_matrix: Optional[Tuple[float, ...]] = None
 
     def __post_init__(self):
-        if self.width < 16 or self.height < 16:
-            raise ValueError(f'camera size {self.width}x{self.height} is too small (>= 16x16)')
-        if not (self.scale > 0 and math.isfinite(self.scale)):
-            raise ValueError(f'camera scale = {self.scale!r} px/m is invalid: must be > 0')
-        if not (self.distance > 0 and math.isfinite(self.distance)):
-            raise ValueError(f'camera distance = {self.distance!r} m is invalid: must be > 0')
-        if not abs(self.slope) <= math.pi / 2:
-            raise ValueError(f'camera slope = {self.slope!r} rad is invalid: allowed '
-                             f'[-pi/2, pi/2]')
+        check_fields(self)          # the spec() ranges; ParameterError is a ValueError
         object.__setattr__(self, 'dist_coeffs', tuple(float(k) for k in self.dist_coeffs))
         if len(self.dist_coeffs) not in (0, 4, 5, 8) or not all(
                 math.isfinite(k) for k in self.dist_coeffs):

@@ -34,7 +34,7 @@ import numpy as np
 
 from saw_ros.core import body
 from saw_ros.core.kinematics import base_link_end, cycle_phases, hinge_x, link_geometry, PhaseTable
-from saw_ros.core.params import RobotParams, spec
+from saw_ros.core.params import check_fields, RobotParams, spec
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.scene import distortion_maps, draw_clutter, gradient_map, jpeg, SceneOptions
 
@@ -66,7 +66,7 @@ class RobotPose(NamedTuple):
 @dataclass(frozen=True)
 class RenderOptions:
     # spec(): unit, range and description, for the camera node's parameters, its
-    # msg_config/camera.yaml and saw-ros render's options (ranges as __post_init__ checks them)
+    # msg_config/camera.yaml and saw-ros render's options; __post_init__ checks these ranges
     noise: float = spec(0.0, 'grey levels', 'sensor noise, standard deviation; 0 = none', 0.0,
                         None)
     exposure: float = spec(0.0, 's', 'exposure time for motion blur; 0 = none', 0.0, None)
@@ -83,15 +83,7 @@ class RenderOptions:
     board_thickness: float = spec(0.018, 'm', 'thickness of the board behind each surface')
 
     def __post_init__(self):
-        for name in ('noise', 'exposure'):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f'render {name} = {getattr(self, name)!r} must be >= 0')
-        if not self.brightness > 0:
-            raise ValueError(f'render brightness = {self.brightness!r} must be > 0')
-        if self.blur_samples < 1:
-            raise ValueError(f'render blur_samples = {self.blur_samples!r} must be >= 1')
-        if not self.marker_radius > 0:
-            raise ValueError(f'render marker_radius = {self.marker_radius!r} must be > 0')
+        check_fields(self)          # the spec() ranges; ParameterError is a ValueError
 
 
 class _GeometryTable(PhaseTable):
