@@ -67,6 +67,8 @@ CASES = {
     'video_source': ({'path': '{frames}', 'fps': 30, 'px_per_m': 1200}, 'px_per_mm',
                      ('px_per_m', -5, '[0, inf) px/m'), ('loop', 'maybe', 'must be true or false'),
                      True),
+    'speed_controller': ({}, 'target_sped', ('target_speed', 1, '[-0.5, 0.5] m/s'),
+                         ('kp', 'high', 'must be a number in'), False),
 }
 
 
