@@ -114,16 +114,22 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                  bag_dir: Optional[Path] = None, camera: Optional[Dict[str, object]] = None,
                  reference_file: Optional[Path] = None, timeout: Optional[float] = None,
                  progress=None, record_topics: Optional[List[str]] = None,
+                 env: Optional[Dict[str, str]] = None,
+                 hosts: Optional[Dict[str, List[str]]] = None,
                  controller: Optional[Dict[str, object]] = None) -> PipelineRun:
     """
     Run the graph once; always stops every process it started (also on Ctrl-C).
 
-    ``record_topics``: what the recorder records (default ``RECORDED_TOPICS``).
+    ``record_topics``: what the recorder records (default ``RECORDED_TOPICS``). ``env``: the
+    processes' environment (default ``isolated_ros_env()``: this host only); ``hosts``: per
+    node name (and 'ready', the readiness probe) a command prefix that runs it elsewhere, such
+    as another network namespace (tests/graph/test_two_hosts.py).
     """
     out_dir = Path(out_dir)
     logs = out_dir / 'logs'
     out_dir.mkdir(parents=True, exist_ok=True)
-    env = isolated_ros_env()
+    env = env if env is not None else isolated_ros_env()
+    hosts = hosts or {}
     report_path = out_dir / 'comparison.json'
     if report_path.exists():
         report_path.unlink()
@@ -138,8 +144,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     def launch(name, **params):
         # The simulator sets the pace; the others consume its messages in batches
         # (process.batch_policy: their wake-ups would preempt it).
-        p = ManagedProcess(name, node_command(name, params=params), env, logs,
-                           batch=name != 'simulator')
+        p = ManagedProcess(name, hosts.get(name, []) + node_command(name, params=params), env,
+                           logs, batch=name != 'simulator')
         nodes.append(p)
         return p
 
@@ -154,7 +160,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             # Readiness from the graph: camera, comparison and vision say ready on /saw/ready
             # (saw_ros.ros.ready); a probe process waits for them (no rclpy here). Started
             # first, it discovers the graph while the nodes start.
-            probe_command = node_command('ready', package='saw_ros.ros') + [
+            probe_command = hosts.get('ready', []) + node_command(
+                'ready', package='saw_ros.ros') + [
                 '--nodes', ','.join(READY_NODES), '--timeout', f'{3 * MATCH_TIMEOUT:g}']
             probe = ManagedProcess('ready', probe_command, env, logs)
         started = {name: launch(name, **values) for name, values in node_params.items()}
