@@ -144,9 +144,38 @@ def test_the_readme_quotes_the_generated_numbers():
         f'under 2 % after {ours("C2")} s and under 0.2 % after {ours("C3")} s',
         f'({ours("S1")} deg, {ours("S2")} m g, {ours("S5")} deg)',
         f'{campaign_reference_error()} % from the three speeds the paper measured',
+        f'{v_theory_cm_s()} cm/s at 1 Hz',
+        f'the soft surfaces give way, {ours("A1")} here',
+        f'Tracking against simulation differs by about {campaign_tracking_error()} %',
     ]
     missing = [q for q in quoted if q not in text]
     assert not missing, f'README.md does not say (or says other numbers than): {missing}'
+
+
+def v_theory_cm_s() -> str:
+    from saw_ros.core import Scenario, v_theory
+    return f'{100 * v_theory(Scenario().robot, 1.0):.2f}'
+
+
+def campaign_tracking_error() -> str:
+    text = (ROOT / 'docs' / 'campaign' / 'campaign.md').read_text()
+    return f'{float(re.search(r"^[|] all [|] ([0-9.]+) [|]", text, re.M).group(1)):.2f}'
+
+
+def test_the_main_jobs_real_time_factor_and_the_viewers_distance_are_current():
+    from saw_ros.cli.main import build_parser
+    parser = build_parser()
+    demo = next(a for a in parser._actions if a.dest == 'command').choices['demo']
+    rtf = demo.get_default('real_time_factor')
+    text = ' '.join(README.read_text().split())
+    assert f'at real-time factor {rtf:g}: about' in text
+    assert f"main job's real-time factor {rtf:g}" in text
+    duration = demo.get_default('duration')
+    speed = float(ours('A1')) * float(v_theory_cm_s())
+    viewers = ' '.join((ROOT / 'docs' / 'viewers.md').read_text().split())
+    assert (f'at {speed:.1f} cm/s (AR {ours("A1")} of v_theory {v_theory_cm_s()} cm/s at 1 Hz) '
+            f'the robot crosses about {round(speed * duration, -1):.0f} cm in the main job\'s '
+            f'{duration:g} s') in viewers
 
 
 def test_the_statics_quoted_are_the_closed_forms():
