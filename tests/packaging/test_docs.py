@@ -174,7 +174,7 @@ def test_the_main_jobs_real_time_factor_and_the_viewers_distance_are_current():
     speed = float(ours('A1')) * float(v_theory_cm_s())
     viewers = ' '.join((ROOT / 'docs' / 'viewers.md').read_text().split())
     assert (f'at {speed:.1f} cm/s (AR {ours("A1")} of v_theory {v_theory_cm_s()} cm/s at 1 Hz) '
-            f'the robot crosses about {round(speed * duration, -1):.0f} cm in the main job\'s '
+            f"the robot crosses about {round(speed * duration, -1):.0f} cm in the main job's "
             f'{duration:g} s') in viewers
 
 
