@@ -10,6 +10,18 @@ ROS parameters:
   clock_rate           double    Hz of /clock made from log times (default 1000; 0 < rate <= 1e6)
   queue_depth          int       publisher history depth (default 1000)
   wait_for_subscribers int       wait (up to 10 s) for this many subscriptions before playing
+  loop                 bool      play again from the start (or start_offset) when done
+  start_offset         double    s into the bag (after its first message) to start from
+  start_paused         bool      start paused: nothing is published until ~/resume or
+                                 ~/play_next
+
+Like ``ros2 bag play`` (the same names where it has them: --rate, --topics, --clock, --loop,
+--start-offset, --start-paused; --remap is the node's own remapping, ``--ros-args -r
+/saw/pose:=/replay/pose``, applied to every topic it plays). Services (std_srvs/Trigger, the names
+of rosbag2's player): ``~/pause``, ``~/resume``, ``~/toggle_paused``, ``~/is_paused`` (message
+'paused' or 'playing'), ``~/play_next`` (paused only: publishes the next message at once and
+names it; false at the end of the bag). After a pause the recorded gaps resume from the next
+message (rosbag2 does the same); /clock made from log times pauses too.
 
 Every parameter is read once, at start: all are read-only (``ros2 param set`` is refused with
 "Trying to set a read-only parameter"); invalid values end the node at start with the reason
@@ -36,6 +48,7 @@ from saw_ros.ros.conversions import clock_cdr
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import CLOCK_QOS, message_class
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
+from std_srvs.srv import Trigger
 
 SLEEP_MIN = 0.0005   # s: no sleep for a message due sooner than this (timing error < 0.5 ms)
 MAX_CLOCK_RATE = 1e6  # Hz: one /clock a microsecond at most
@@ -53,6 +66,11 @@ PARAMETERS = (
     ('queue_depth', 1000, spec_meta('', 'publisher history depth', 1, None)),
     ('wait_for_subscribers', 0, spec_meta('', 'wait (up to 10 s) for this many subscriptions '
                                               'before playing', 0, None)),
+    ('loop', False, spec_meta('', 'play again from the start (or start_offset) when done')),
+    ('start_offset', 0.0, spec_meta('s', 'start this far into the bag (after its first '
+                                         'message)', 0.0, None)),
+    ('start_paused', False, spec_meta('', 'start paused: play on ~/resume, step with '
+                                          '~/play_next')),
 )
 YAML_HEADER = """\
 Parameters of the saw_ros player node (plays a bag back with its recorded timing):
@@ -119,6 +137,19 @@ class Player(Node):
             from rosgraph_msgs.msg import Clock
             self.clock_pub = self.create_publisher(Clock, CLOCK, CLOCK_QOS)
         self.played = 0
+        # Pause, resume, play next: served from the services thread, obeyed by play().
+        self._control = threading.Condition()
+        self._paused = bool(p['start_paused'])
+        self._steps = 0             # ~/play_next requests not yet played
+        self._stepped = 0           # ~/play_next requests played
+        self._last = ''             # topic of the last message played (for ~/play_next)
+        self._at_end = False
+        self._stepping = False      # the message being played answers a ~/play_next
+        for name, handler in (('pause', self._on_pause), ('resume', self._on_resume),
+                              ('toggle_paused', self._on_toggle),
+                              ('is_paused', self._on_is_paused),
+                              ('play_next', self._on_play_next)):
+            self.create_service(Trigger, f'~/{name}', handler)
         self._executor = None       # serves the parameter services while playing
         self._spinner = None
         self._stopping = False
@@ -138,16 +169,42 @@ class Player(Node):
             self.get_logger().warning(f'only {self._subscriber_count()} of {need} subscriptions '
                                       'after 10 s; playing anyway')
         rate = float(self.p['rate'])
+        offset_ns = int(round(float(self.p['start_offset']) * 1e9))
+        self.get_logger().info(f'playing {self.reader.path} ({len(self.publishers_by_topic)} '
+                               f'topics) at rate {rate}'
+                               + (f' from {offset_ns / 1e9:g} s' if offset_ns else '')
+                               + (', looping' if self.p['loop'] else '')
+                               + (', paused (~/resume, ~/play_next)' if self._paused else ''))
+        began = time.monotonic()
+        while True:
+            self._play_once(rate, offset_ns)
+            if not self.p['loop'] or self._stopping:
+                break
+        with self._control:
+            self._at_end = True
+            self._control.notify_all()
+        self.get_logger().info(f'played {self.played} messages in '
+                               f'{time.monotonic() - began:.3f} s')
+
+    def _play_once(self, rate: float, offset_ns: int) -> None:
+        """Play the bag once, from ``offset_ns`` after its first message."""
         clock_period = int(1e9 / self.p['clock_rate']) if self.clock_from_log else None
         next_clock = None
         start_wall = None
         start_bag = None
-        self.get_logger().info(f'playing {self.reader.path} ({len(self.publishers_by_topic)} '
-                               f'topics) at rate {rate}')
+        first = None
         for m in self.reader.messages(list(self.publishers_by_topic)):
+            if first is None:
+                first = m.log_time
+            if m.log_time - first < offset_ns:
+                continue
             if start_wall is None:
                 start_wall, start_bag = time.monotonic(), m.log_time
                 next_clock = m.log_time
+            if self._hold():
+                # Paused (or stepped): the recorded gaps go on from this message, now.
+                start_wall, start_bag = time.monotonic(), m.log_time
+                next_clock = max(next_clock, m.log_time)
             if clock_period is not None:
                 while next_clock <= m.log_time:
                     self._wait_until(start_wall + (next_clock - start_bag) / 1e9 / rate)
@@ -156,8 +213,64 @@ class Player(Node):
             self._wait_until(start_wall + (m.log_time - start_bag) / 1e9 / rate)
             self.publishers_by_topic[m.topic].publish(m.data)
             self.played += 1
-        span = time.monotonic() - start_wall if start_wall is not None else 0.0
-        self.get_logger().info(f'played {self.played} messages in {span:.3f} s')
+            with self._control:
+                self._last = m.topic
+                if self._stepping:
+                    self._stepping = False
+                    self._stepped += 1
+                    self._control.notify_all()
+
+    def _hold(self) -> bool:
+        """Wait while paused; True when this message is played after a pause or a step."""
+        with self._control:
+            if not self._paused:
+                return False
+            while self._paused and not self._steps and not self._stopping:
+                self._control.wait(0.1)
+            if self._paused and self._steps:
+                self._steps -= 1
+                self._stepping = True
+            return True
+
+    # -- services (std_srvs/Trigger, rosbag2's names) -----------------------------------------
+    def _set_paused(self, paused: bool, response):
+        with self._control:
+            self._paused = paused
+            self._control.notify_all()
+        response.success = True
+        response.message = 'paused' if paused else 'playing'
+        return response
+
+    def _on_pause(self, request, response):
+        return self._set_paused(True, response)
+
+    def _on_resume(self, request, response):
+        return self._set_paused(False, response)
+
+    def _on_toggle(self, request, response):
+        return self._set_paused(not self._paused, response)
+
+    def _on_is_paused(self, request, response):
+        response.success = True
+        response.message = 'paused' if self._paused else 'playing'
+        return response
+
+    def _on_play_next(self, request, response):
+        with self._control:
+            if not self._paused:
+                response.message = 'not paused: ~/pause first'
+            elif self._at_end:
+                response.message = 'at the end of the bag'
+            else:
+                want = self._stepped + self._steps + 1
+                self._steps += 1
+                self._control.notify_all()
+                # Answered once it is published, or when the bag ends first.
+                self._control.wait_for(lambda: self._stepped >= want or self._at_end, 5.0)
+                response.success = self._stepped >= want
+                response.message = f'published a message on {self._last}' \
+                    if response.success else 'at the end of the bag'
+        return response
 
     def _publish_clock(self, stamp_ns: int) -> None:
         # Pre-encoded, as the simulator publishes it (1 kHz by default).
@@ -194,7 +307,9 @@ class Player(Node):
 
     def close(self) -> None:
         """Stop the service thread before the node is destroyed."""
-        self._stopping = True
+        with self._control:
+            self._stopping = True
+            self._control.notify_all()
         if self._executor is not None:
             self._spinner.join(2.0)
             self._executor.remove_node(self)
