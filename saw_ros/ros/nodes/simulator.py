@@ -397,8 +397,9 @@ OWN_PARAMETERS = (
     ('duration', 0.0, spec_meta('s', 'simulated time, then the node exits with code 0; 0 = run '
                                      'until stopped', 0.0, float(2 ** 31 - 1))),
     ('markers_rate', markers.RATE, spec_meta(
-        'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers per simulated second '
-        '(at most one per step); 0 = none', 0.0, None, read_only=True)),
+        'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers, and surface -> '
+        'base_link on /tf, per simulated second (at most one per step); 0 = none', 0.0, None,
+        read_only=True)),
     ('command_timeout', 0.5, spec_meta(
         's', 'simulated time without a command on /saw/motor_controller/commands after which '
         'the helix returns to its parameter (motor.voltage or conditions.frequency); 0 = the '
