@@ -105,8 +105,11 @@ def test_hosts_profile_is_the_default_one_open_to_other_hosts():
         text = (CONFIG / name).read_text()
         return text[text.index('<profiles'):]
     default, hosts = profiles('fastdds.xml'), profiles('fastdds_hosts.xml')
-    line = '      <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>\n'
-    assert line in default and default.replace(line, '') == hosts
+    loopback = '      <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>\n'
+    buffers = ('      <sendBufferSize>4194304</sendBufferSize>\n'
+               '      <receiveBufferSize>4194304</receiveBufferSize>\n')
+    assert loopback in default and buffers in hosts
+    assert default.replace(loopback, '') == hosts.replace(buffers, '')
 
 
 def _loadgen_to_recorder(hosts, env, tmp_path, timeout):
