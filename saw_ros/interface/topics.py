@@ -51,7 +51,6 @@ READY = '/saw/ready'
 MARKERS = '/saw/markers'
 TRACKING_MARKERS = '/saw/tracking/markers'
 DIAGNOSTICS = '/diagnostics'
-DIAGNOSTICS = '/diagnostics'
 TF = '/tf'
 TF_STATIC = '/tf_static'
 ROBOT_DESCRIPTION = '/robot_description'
@@ -109,9 +108,6 @@ TOPICS: Tuple[Topic, ...] = (
           'surface -> saw_camera, the camera optical frame'),
     Topic(ROBOT_DESCRIPTION, 'std_msgs/msg/String', 'latched', 'simulator', 'once', '',
           'URDF of the robot (saw_ros.interface.urdf), for robot_state_publisher and RViz'),
-    Topic(DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking', 'simulator',
-          '1 Hz, and at each fault', '', "the simulator's health: OK, WARN after recoveries, "
-          'ERROR at each divergence or change the state cannot take, with the reset it made'),
     Topic(DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking', 'simulator',
           '1 Hz, and at each fault', '', "the simulator's health: OK, WARN after recoveries, "
           'ERROR at each divergence or change the state cannot take, with the reset it made'),
