@@ -14,7 +14,8 @@ S scenarios that share one robot geometry and time step are stepped together as 
 The helix turns at the constant conditions.frequency (the paper's simulation), or, where
 motor.voltage > 0, at a speed omega that is a state: the DC motor of docs/motor.md against the
 load torque of the contact forces, with the back-EMF and the Coulomb friction taken implicitly
-so that any rotor inertia J >= 0 is stable at dt = 1 ms.
+so that the paper's motor is stable at dt = 1 ms with any rotor inertia J >= 0 (core.stability
+refuses a motor too light for the step, its load torque being explicit).
 """
 from __future__ import annotations
 

@@ -7,8 +7,10 @@ against a load torque tau_load:
 
     J (w' - w) / dt = k i - tau_f sign(w') - tau_load,    i = (V - k w') / R.
 
-Back-EMF and friction are taken at the new speed w' (implicit): the step is stable for every
-J >= 0 (J = 0 is the quasi-static law w' = (V - R (tau_load + tau_f) / k) / k), and friction
+Back-EMF and friction are taken at the new speed w' (implicit): they cannot make the step ring,
+for any J >= 0 (J = 0 is the quasi-static law w' = (V - R (tau_load + tau_f) / k) / k). The
+load torque is the last step's: core.stability bounds it against the helix's inertia
+J + k^2 dt / R (the paper's motor uses 0.0001 of that limit, 0.03 at J = 0). Friction
 holds a helix whose drive cannot beat it at exactly 0 instead of chattering about it. Multiplied
 by R the step never divides by R, so R = 0 is the ideal stiff source, w' = V / k.
 """

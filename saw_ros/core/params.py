@@ -285,16 +285,20 @@ class MotorParams(_Validated):
     """
 
     section = 'motor'
+    # Bounded 40 times beyond the paper's motor either way, where the step's arithmetic still
+    # holds: at hz_per_volt 1e300 the no-load speed V / k swamped the helix speed in the implicit
+    # step (garbage speeds of 1e285 rad/s), at 5e-324 k was inf, and resistance and inertia
+    # both at 1e300 made the torque inf * 0 = NaN.
     hz_per_volt: float = spec(0.24, 'Hz/V', 'helix turns per second per volt of back-EMF (the '
                               'no-load speed of a motor without friction); sets the motor '
-                              'constant k = 1 / (2 pi hz_per_volt) in V s/rad = N m/A', 0.0, None,
-                              low_open=True)
+                              'constant k = 1 / (2 pi hz_per_volt) in V s/rad = N m/A', 0.006,
+                              10.0)
     resistance: float = spec(8.0, 'ohm', 'winding resistance; 0 = an ideal stiff source whose '
-                             'speed does not depend on the load', 0.0, None)
+                             'speed does not depend on the load', 0.0, 320.0)
     friction_torque: float = spec(0.02, 'N m', 'Coulomb friction torque at the helix (gearbox, '
-                                  'and the helix against the links)', 0.0, None)
+                                  'and the helix against the links)', 0.0, 0.8)
     inertia: float = spec(0.006, 'kg m^2', 'rotor inertia reflected through the gearbox, plus '
-                          'the helix, at the helix shaft; 0 = quasi-static', 0.0, None)
+                          'the helix, at the helix shaft; 0 = quasi-static', 0.0, 0.24)
     # Up to 20 V: 4.7 Hz at the default 0.24 Hz/V, within conditions.frequency's 5 Hz (the
     # Scenario holds any other hz_per_volt to that too).
     voltage: float = spec(0.0, 'V', 'motor voltage; above 0 the motor drives the helix and '

@@ -28,6 +28,16 @@ and the squeeze the surfaces hold it in: the measured omega of a running simulat
 surface, and one tip at the far end bearing its whole weight gives the bound there. kt counts
 too: a shear spring beyond the limit is held by friction, but it chatters between stick and slip
 at every step.
+
+The motor (``motor``, with motor.voltage > 0) takes its back-EMF and friction implicitly, but the
+load torque of the contacts explicitly. Against the contacts' stiffness seen through the helix
+phase, K = d(load)/d(phase) <= sum over touching tips of p kn delta^(p-1) (dy/dphase)^2 +
+kt (dx/dphase)^2, its step is semi-implicit Euler on a damped oscillator of inertia
+M = J + k^2 dt / R (the rotor, plus what the implicit back-EMF adds), retaining a = J / M of the
+speed per step: stable while s = K dt^2 / M < 2 (1 + a). That is omega dt < 2 for a heavy rotor
+(a = 1), and for a quasi-static one (J = 0) the mechanical time constant R / k^2 against dt: at
+hz_per_volt 10 Hz/V and 320 ohm the helix ran away at the first step. The same margin holds:
+s <= (OMEGA_DT_MAX / 2)^2 2 (1 + a).
 """
 from __future__ import annotations
 
@@ -37,7 +47,7 @@ from typing import Tuple
 
 import numpy as np
 
-from saw_ros.core.kinematics import cycle_phases, link_geometry
+from saw_ros.core.kinematics import cycle_phases, link_geometry, tip_rates
 from saw_ros.core.params import GRAVITY, ParameterError, RobotParams
 
 OMEGA_DT_MAX = 1.5          # the step's limit is 2; margin for damping and deeper contacts
@@ -73,6 +83,38 @@ def contact_omega(robot: RobotParams, kn: float, exponent: float, kt: float,
     return math.sqrt(max(squeezed, resting))
 
 
+@functools.lru_cache(maxsize=1024)
+def phase_stiffness(robot: RobotParams, kn: float, exponent: float, kt: float,
+                    gap: float) -> float:
+    """Return the bound on d(load torque)/d(phase), N m/rad, that the motor's step meets."""
+    tips, side = _tips(robot)
+    rates = tip_rates(robot, cycle_phases(PHASES))
+    depth = side * tips.imag - gap / 2.0
+    touching = depth > 0.0
+    normal = exponent * kn * np.where(touching, depth, 1.0) ** (exponent - 1.0)
+    per_tip = normal * rates.imag ** 2 + kt * rates.real ** 2
+    squeezed = float(np.where(touching, per_tip, 0.0).sum(axis=1).max())
+    held = (robot.mass * GRAVITY / kn) ** (1.0 / exponent)
+    resting = (exponent * kn * held ** (exponent - 1.0) * float((rates.imag ** 2).max())
+               + kt * float((rates.real ** 2).max()))
+    return max(squeezed, resting)
+
+
+def _motor_margin(scenario, inertia: float) -> float:
+    """Return s / its allowed value for the motor's step (<= 1: stable with the margin)."""
+    motor, surface, dt = scenario.motor, scenario.surface, scenario.integration.dt
+    stiffness = phase_stiffness(scenario.robot, surface.normal_stiffness,
+                                surface.hertz_exponent, surface.tangential_stiffness,
+                                scenario.conditions.gap)
+    k = motor.torque_constant
+    # R = 0 is an ideal source (w' = V / k): no step of its own, nothing to ring.
+    if motor.resistance == 0.0:
+        return 0.0
+    mass = inertia + k * k * dt / motor.resistance
+    retained = inertia / mass
+    return stiffness * dt * dt / mass / ((OMEGA_DT_MAX / 2.0) ** 2 * 2.0 * (1.0 + retained))
+
+
 def _largest(stable, value: float) -> float:
     """Return the largest x in (0, value] for which ``stable(x)`` (monotonic) holds."""
     low, high = 0.0, value
@@ -89,6 +131,7 @@ def check(scenario) -> None:
     gap = scenario.conditions.gap
     omega = contact_omega(robot, kn, p, kt, gap)
     if omega * dt <= OMEGA_DT_MAX:
+        _check_motor(scenario)
         return
     kn_max = _largest(lambda k: contact_omega(robot, k, p, kt, gap) * dt <= OMEGA_DT_MAX, kn)
     kt_max = _largest(lambda k: contact_omega(robot, kn, p, k, gap) * dt <= OMEGA_DT_MAX, kt)
@@ -101,3 +144,23 @@ def check(scenario) -> None:
         f'{gap:g} m): they would ring at {omega / (2.0 * math.pi):.0f} Hz, and the step is '
         f'stable up to omega dt = {OMEGA_DT_MAX:g}, here {omega * dt:.2f}; allowed with the '
         f'other values: {", or ".join(a for a in allowed if a)}')
+
+
+def _check_motor(scenario) -> None:
+    """Raise ParameterError if the motor's step would ring against the contacts (docstring)."""
+    motor, dt = scenario.motor, scenario.integration.dt
+    if motor.voltage <= 0.0 or _motor_margin(scenario, motor.inertia) <= 1.0:
+        return
+    # The smallest rotor inertia that would do, with the rest as it is.
+    top = 1.0
+    while _motor_margin(scenario, top) > 1.0 and top < 1e12:
+        top *= 2.0
+    needed = top - _largest(lambda j: _motor_margin(scenario, top - j) <= 1.0, top)
+    helix = motor.inertia + motor.torque_constant ** 2 * dt / motor.resistance
+    raise ParameterError(
+        f'the motor cannot be stepped at integration.dt = {dt:g} s against these contacts: '
+        f'with motor.inertia = {motor.inertia:g} kg m^2, motor.resistance = '
+        f'{motor.resistance:g} ohm and motor.hz_per_volt = {motor.hz_per_volt:g} Hz/V the '
+        f'helix (inertia plus k^2 dt / R: {helix:.3g} kg m^2) would ring against the load; '
+        f'allowed with the other values: motor.inertia >= {needed:.3g} kg m^2, or a smaller '
+        f'motor.resistance or motor.hz_per_volt')

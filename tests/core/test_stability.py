@@ -108,3 +108,24 @@ def test_a_narrower_gap_that_the_state_cannot_take_is_named():
     sim.reset()                          # the node's answer: time goes on, the robot restarts
     assert sim.t == t and sim.placement_error() is None
     sim.run(1.0)
+
+
+def test_a_motor_too_light_for_the_step_is_refused_with_the_inertia_it_needs(monkeypatch):
+    # A quasi-static rotor (J = 0) behind a weak, resistive motor: the helix's inertia is then
+    # only k^2 dt / R (8e-10 kg m^2), and the explicit load torque makes it ring.
+    weak = {'motor.hz_per_volt': 10.0, 'motor.resistance': 320.0, 'motor.voltage': 0.5,
+            'motor.friction_torque': 0.0, 'motor.inertia': 0.0}
+    with pytest.raises(ParameterError, match=r'motor.inertia >= ') as refused:
+        Simulator(Scenario().with_values(weak))
+    needed = float(str(refused.value).split('motor.inertia >= ')[1].split()[0])
+    just_inside = Scenario().with_values({**weak, 'motor.inertia': needed * 1.01})
+    sim = Simulator(just_inside)
+    sim.run(2.0)
+    assert np.isfinite(sim.omega).all() and abs(sim.omega[0]) < 100.0
+    # Without the check, a tenth of it runs away at once: the limit is where the step fails.
+    monkeypatch.setattr(stability, 'check', lambda scenario: None)
+    with pytest.raises(DivergenceError, match='helix turned at'):
+        simulate(Scenario().with_values({**weak, 'motor.inertia': needed * 0.1}), 0.5)
+    # The paper's motor, even quasi-static (J = 0), is far inside the limit.
+    default = Scenario().with_values({'motor.voltage': 6.0, 'motor.inertia': 0.0})
+    assert stability._motor_margin(default, 0.0) < 0.05
