@@ -30,6 +30,11 @@ Reset. ``~/reset`` puts the robot back in its initial state (centred in the gap,
 no contact memory) with the current parameters; simulated time goes on (stamps and /clock never
 go backwards, so use_sim_time consumers, TF buffers and bags are not disturbed). ``duration``
 counts simulated time since the node started, resets included.
+
+Faults. Nothing a parameter or the physics does ends the node once it steps: a change the step
+cannot integrate (core.stability) is refused with the limit; one the current state cannot take
+(a narrower gap) and a divergence are answered by the same reset, an ERROR status on
+/diagnostics and a log line with the time (docs/simulator.md, Faults and recovery).
 """
 from __future__ import annotations
 
