@@ -149,6 +149,8 @@ def _rewrite(path: str, topics: Dict[str, list]):
 def _write_metadata(directory: str, info: dict) -> None:
     """Write metadata.yaml under a temporary name, then move it into place (never half)."""
     temporary = inside(directory, '.metadata.yaml.reindexing', directory)
-    with open(temporary, 'w', encoding='utf-8') as f:
+    if os.path.lexists(temporary):          # left by an interrupted reindex: ours to replace
+        os.remove(temporary)
+    with open(temporary, 'x', encoding='utf-8') as f:
         f.write(dump_yaml({'rosbag2_bagfile_information': info}))
     os.replace(temporary, os.path.join(directory, 'metadata.yaml'))
