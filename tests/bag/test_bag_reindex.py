@@ -145,6 +145,7 @@ def test_refusals_are_one_line(pristine, tmp_path, capsys):
 
 
 @pytest.mark.ros
+@pytest.mark.slow
 def test_recorder_killed_at_random_moments_is_reindexed(tmp_path, capsys):
     """Three recorders on one load, each killed with SIGKILL at its own random moment."""
     rng = random.Random()
