@@ -33,6 +33,7 @@ from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTabl
 from saw_ros.core.motor import MotorLaw
 from saw_ros.core.params import ParameterError, PLACEMENT_SHARE, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
+from saw_ros.core.walls import Walls
 
 GRAVITY = 9.81  # m/s^2
 TWO_PI = 2.0 * math.pi
@@ -119,6 +120,8 @@ class Simulator:
         self._work = np.zeros((self.count, tips))
         self._ones = np.ones(tips)
         self.penetration = np.zeros((self.count, tips))        # > 0 inside a surface, m
+        # What the contact law sees: the penetration, less the bending walls' deflection.
+        self.depth = self.penetration
         # The drive from outside (core.drive, issue 22): a commanded voltage (V, (S,)) or helix
         # frequency (Hz, (S,)) that overrides motor.voltage / conditions.frequency until cleared,
         # or a voltage profile over the helix turn. None: the parameters drive.
@@ -166,6 +169,10 @@ class Simulator:
             restitution=surface('restitution'), hysteresis_speed=surface('hysteresis_speed'),
             dt=self.dt)
         self._max_penetration = np.array([s.surface.max_penetration for s in scenarios])
+        # Bending walls where any scenario has them (core.walls); None: rigid, as the paper's.
+        # New parameters start the walls from the last forces' shape again at the next step.
+        self.walls = (Walls(scenarios, self.table.side)
+                      if any(s.surface.foundation_stiffness > 0.0 for s in scenarios) else None)
         self._max_penetration_any = float(self._max_penetration.min())
         gap = np.array([[s.conditions.gap] for s in scenarios])
         side = self.table.side
@@ -200,6 +207,8 @@ class Simulator:
         for a in (self.motor_torque, self.current, self.load_torque, self.friction_torque):
             a[:] = np.nan
         self.contacts.reset()
+        if self.walls is not None:
+            self.walls.reset()
 
     def _set_motor(self, scenarios: Sequence[Scenario]) -> None:
         """Fold the motor constants of the scenarios that a motor drives (docs/motor.md)."""
@@ -337,6 +346,8 @@ class Simulator:
         """
         body = self.table.at(self.phase) * np.exp(1j * self.q[2])[:, None]
         pen = (body.imag + self.q[1][:, None]) * self._side - self._level
+        if self.walls is not None:
+            pen = pen - self.walls.deflection       # as deep as the bent walls let them
         allowed = PLACEMENT_SHARE * self._max_penetration
         too_deep = pen - allowed[:, None]
         i, tip = np.unravel_index(np.argmax(too_deep), too_deep.shape)
@@ -359,6 +370,10 @@ class Simulator:
         pen = np.add(by, q[1, :, None], out=self.penetration)
         pen *= self._side
         pen -= self._level
+        if self.walls is not None:
+            # Bending walls (core.walls): the depth against the deflected surfaces.
+            pen = self.walls.solve(pen, x, contacts, self.law)
+        self.depth = pen
         fn, ft = contact_step(contacts, pen, x, self.law)
         forces = self._forces
         # Bottom tips push up (+y), top tips push down: Fy = -side Fn. Row sums as mat-vec
@@ -414,14 +429,14 @@ class Simulator:
                 f'simulation diverged at t = {t:.3f} s (scenario {i}): the robot moved at '
                 f'({vx:.3g} m/s, {vy:.3g} m/s, {w:.3g} rad/s), beyond {MAX_SPEED:g} m/s or '
                 f'rad/s, far outside the model (check the resisting force and slope)')
-        too_deep = self.penetration - self._max_penetration[:, None]
+        too_deep = self.depth - self._max_penetration[:, None]
         i, tip = np.unravel_index(np.argmax(too_deep), too_deep.shape)
         if too_deep[i, tip] > 0:
             n = self.table.count // 2
             surface = 'top' if tip >= n else 'bottom'
             raise DivergenceError(
                 f'simulation diverged at t = {t:.3f} s (scenario {i}): a tip of link {tip % n} '
-                f'pressed {self.penetration[i, tip] * 1000:.1f} mm into the {surface} surface, '
+                f'pressed {self.depth[i, tip] * 1000:.1f} mm into the {surface} surface, '
                 f'deeper than surface.max_penetration = '
                 f'{self._max_penetration[i] * 1000:.1f} mm (the robot was pushed through the '
                 f'surface: check the slope, resisting force and stiffness, or reduce '

@@ -229,6 +229,16 @@ class SurfaceParams(_Validated):
     max_penetration: float = spec(0.015, 'm',
                                   'deepest a tip can physically press into a surface; deeper '
                                   'means the simulation diverged', 0.0, 0.05, low_open=True)
+    # Walls that bend (core.walls, docs/walls.md): each surface a beam on an elastic foundation.
+    # 0 keeps them rigid behind their contact springs, the paper's model and the default.
+    foundation_stiffness: float = spec(0.0, 'N/m^2', 'stiffness k of what holds each surface, per '
+                                       'metre of its length (Winkler foundation); 0 = rigid '
+                                       'walls', 0.0, 1e10)
+    bending_stiffness: float = spec(6.25e-4, 'N m^2', 'bending stiffness EI of each surface '
+                                    '(the strip the robot touches); used with '
+                                    'foundation_stiffness > 0', 0.0, 1e4, low_open=True)
+    contact_width: float = spec(0.005, 'm', 'length of surface one tip presses on: its force is '
+                                'spread over it (bending walls only)', 0.0, 0.05, low_open=True)
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from typing import Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 
+from saw_ros.core import walls
 from saw_ros.core.contact import hysteresis_factor
 from saw_ros.core.dynamics import GRAVITY
 from saw_ros.core.params import ParameterError, RobotParams, Scenario
@@ -97,10 +98,42 @@ def anchor_normal_force(worm: WormParams, scenario: Scenario) -> float:
     """
     if worm.anchor_normal_force is not None:
         return worm.anchor_normal_force
-    s = scenario.surface
     squeeze = max(0.0, (worm.height - scenario.conditions.gap) / 2.0)
     share = worm.mass * GRAVITY * math.cos(scenario.conditions.slope) / worm.cells
-    return 2.0 * s.normal_stiffness * float(squeeze ** s.hertz_exponent) + max(share, 0.0)
+    return 2.0 * squeeze_force(scenario.surface, squeeze) + max(share, 0.0)
+
+
+def squeeze_force(surface, squeeze: float) -> float:
+    """
+    Return one side's normal force (N) of a cell pressed ``squeeze`` (m) into a surface.
+
+    The Hertz law against a rigid wall; against a bending one (core.walls) the wall gives way
+    under the cell by g0 F (g0: the wall's compliance under one contact patch; the cells are
+    7 cm apart, several decay lengths, so they do not feel each other), and
+    F = kn (squeeze - g0 F)^p is solved by bisection.
+    """
+    kn, p = surface.normal_stiffness, surface.hertz_exponent
+    rigid = kn * float(squeeze ** p)
+    if surface.foundation_stiffness <= 0.0 or rigid <= 0.0:
+        return rigid
+    g0 = float(walls.deflection(0.0, 1.0, surface.foundation_stiffness,
+                                surface.bending_stiffness, surface.contact_width))
+    low, high = 0.0, rigid
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        if kn * max(squeeze - g0 * mid, 0.0) ** p > mid:
+            low = mid
+        else:
+            high = mid
+    return 0.5 * (low + high)
+
+
+def wall_relief(worm: 'WormParams', scenario: Scenario) -> float:
+    """Return the share of its rigid-wall squeeze force a cell keeps against bending walls."""
+    squeeze = max(0.0, (worm.height - scenario.conditions.gap) / 2.0)
+    s = scenario.surface
+    rigid = s.normal_stiffness * float(squeeze ** s.hertz_exponent)
+    return squeeze_force(s, squeeze) / rigid if rigid > 0.0 else 1.0
 
 
 @dataclass
@@ -114,8 +147,10 @@ class WormResult:
 def _load(worm: WormParams, scenario: Scenario) -> float:
     mu = scenario.surface.friction_coefficient
     c = scenario.conditions
-    return mu * worm.moving_normal_force + worm.mass * GRAVITY * math.sin(c.slope) \
-        + c.external_force
+    # The moving cell's residual normal force is a squeeze too: bending walls relieve it as they
+    # relieve the anchors (the calibrated F_m is the rigid walls').
+    return mu * worm.moving_normal_force * wall_relief(worm, scenario) \
+        + worm.mass * GRAVITY * math.sin(c.slope) + c.external_force
 
 
 def closed_form(scenario: Scenario, worm: WormParams = WormParams()) -> WormResult:

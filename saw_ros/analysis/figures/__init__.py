@@ -21,7 +21,9 @@ from saw_ros.interface.config import config_path, load_scenario
 
 CALIBRATED_FILE = 'simulator_calibrated.yaml'
 
-__all__ = ['Calibrated', 'FIGURES', 'reproduce', 'Result']
+__all__ = ['Calibrated', 'EXTRAS', 'FIGURES', 'reproduce', 'Result']
+# Beyond the paper's figures: the same questions on walls that bend (analysis.walls_study).
+EXTRAS = ('walls',)
 
 
 @dataclass
@@ -65,6 +67,8 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
     files written and the timings.
     """
     start = time.perf_counter()
+    with_walls = 'walls' in figures
+    figures = [f for f in figures if f not in EXTRAS]
     out_dir = Path(out_dir)
     fig_dir = out_dir / 'figures'
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -107,10 +111,19 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
         files += render.RENDER[f](data, fig_dir)
     data.timings['render_s'] = time.perf_counter() - t0
     claims = claims_mod.evaluate(data)
+    walls_text = ''
+    if with_walls:
+        from saw_ros.analysis import walls_study
+        t0 = time.perf_counter()
+        walls = walls_study.compute(quick, pool)
+        files += walls_study.write(walls, fig_dir)
+        walls_text = walls_study.report_section(walls)
+        data.timings['walls_s'] = time.perf_counter() - t0
     elapsed = time.perf_counter() - start
     report_path = None
     if write_report:
         report_path = out_dir / 'fidelity.md'
-        report_path.write_text(render.report(data, claims, 'figures', elapsed, command, cal))
+        report_path.write_text(render.report(data, claims, 'figures', elapsed, command, cal)
+                               + walls_text)
     data.timings['total_s'] = time.perf_counter() - start
     return Result(data, claims, files, report_path, elapsed, data.timings, cal)

@@ -7,7 +7,8 @@ unless --out says otherwise. The committed copy lives in the repository's docs/:
 `saw-ros figures --out docs` from the repository root to refresh it.
 
 figures: 4 (statics), 7 and 8 (time series, CCI), 9 (gap), 10 (stiffness), 11 (COF),
-20 and 21 (wave against worm).
+20 and 21 (wave against worm); and beyond the paper, walls (the wave and the worm on walls
+that bend: docs/walls.md).
 
 For example:
   saw-ros figures                          # everything into out/figures
@@ -34,7 +35,8 @@ def add_arguments(p):
                    help=f'output directory: OUT/figures/*.png|csv and OUT/fidelity.md '
                         f'(default: {DEFAULT_OUT}; --out docs refreshes the committed copy)')
     p.add_argument('--only', default='', help='comma-separated figure numbers '
-                   '(4, 7, 8, 9, 10, 11, 20, 21); the report then covers their claims only')
+                   '(4, 7, 8, 9, 10, 11, 20, 21) or walls; the report then covers their claims '
+                   'only')
     p.add_argument('--quick', action='store_true', help='coarse grids and 3 s runs')
     p.add_argument('--quiet', action='store_true', help='no progress bar, no claim table')
     p.add_argument('--calibrated', default='shipped', metavar='PATH',
@@ -45,11 +47,12 @@ def add_arguments(p):
 
 
 def run(args):
-    from saw_ros.analysis.figures import FIGURES, reproduce
-    wanted = [w.strip() for w in args.only.split(',') if w.strip()] or list(FIGURES)
-    unknown = [w for w in wanted if w not in FIGURES]
+    from saw_ros.analysis.figures import EXTRAS, FIGURES, reproduce
+    known = list(FIGURES) + list(EXTRAS)
+    wanted = [w.strip() for w in args.only.split(',') if w.strip()] or known
+    unknown = [w for w in wanted if w not in known]
     if unknown:
-        raise UserError(f'unknown figure(s) {", ".join(unknown)}; known: {", ".join(FIGURES)}')
+        raise UserError(f'unknown figure(s) {", ".join(unknown)}; known: {", ".join(known)}')
     output_dir(args.out, '--out')
     command = 'saw-ros figures' + (' --quick' if args.quick else '') + \
         (f' --only {",".join(wanted)}' if args.only else '') + \

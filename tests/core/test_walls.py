@@ -1,0 +1,157 @@
+"""Walls that bend (issue 23): closed forms, limits, the coupling, and rigid walls unchanged."""
+import math
+
+import numpy as np
+import pytest
+
+from saw_ros.core.dynamics import Simulator
+from saw_ros.core.params import ParameterError, Scenario
+from saw_ros.core.walls import deflection, finite_difference_deflection, point_deflection, Walls
+
+K, EI, B = 1.5e5, 6.25e-4, 0.005          # the silicone sheet of docs/walls.md
+SHEET = Scenario().with_values({'surface.foundation_stiffness': K,
+                                'surface.bending_stiffness': EI})
+
+
+def test_a_narrow_patch_is_hetenyis_point_load():
+    r = np.linspace(0.0, 0.08, 400)
+    narrow = deflection(r, 2.0, K, EI, 1e-6)
+    exact = point_deflection(r, 2.0, K, EI)
+    # Hetenyi: w(0) = P beta / 2k, and the uplift beyond 3 pi / (4 beta).
+    beta = (K / (4 * EI)) ** 0.25
+    assert exact[0] == pytest.approx(2.0 * beta / (2 * K))
+    assert exact[r > 3 * math.pi / (4 * beta) + 1e-3].min() < 0.0
+    np.testing.assert_allclose(narrow, exact, atol=1e-9 * exact.max())
+
+
+def test_the_patch_formula_is_the_point_load_integrated_over_the_patch():
+    r = np.array([0.0, 0.001, 0.0024, 0.003, 0.01, 0.03])
+    s = np.linspace(-B / 2, B / 2, 20001)
+    quadrature = [np.trapezoid(point_deflection(x - s, 1.0 / B, K, EI), s) for x in r]
+    np.testing.assert_allclose(deflection(r, 1.0, K, EI, B), quadrature, rtol=1e-6)
+
+
+def test_finite_differences_converge_to_the_closed_form_for_several_loads():
+    loads, at = [1.0, 0.6, 0.3], [0.0, 0.011, 0.025]
+    errors = []
+    for h in (4e-4, 1e-4, 5e-5):
+        x, w = finite_difference_deflection(loads, at, K, EI, B, 0.4, h)
+        exact = sum(deflection(x - c, f, K, EI, B) for f, c in zip(loads, at))
+        errors.append(np.abs(w - exact).max() / exact.max())
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[-1] < 1e-5
+
+
+def test_the_finite_differences_hold_a_simply_supported_span():
+    """P L^3 / (48 EI) at the centre of a span without foundation; second order in h."""
+    span, load = 0.2, 1.0
+    exact = load * span ** 3 / (48 * EI)
+    errors = []
+    for h in (4e-3, 2e-3, 1e-3):
+        x, w = finite_difference_deflection([load], [0.0], 0.0, EI, h / 2, span, h, 'simple')
+        errors.append(abs(w[len(x) // 2] - exact) / exact)
+    assert errors[-1] < 1e-4
+    assert errors[0] / errors[1] == pytest.approx(4.0, rel=0.1)
+    assert errors[1] / errors[2] == pytest.approx(4.0, rel=0.1)
+
+
+def test_compliance_is_superposition_and_symmetric():
+    walls = Walls([SHEET], Simulator(SHEET).table.side)
+    n = walls.n
+    x = np.concatenate([np.linspace(0.0, 0.2, n), np.linspace(0.003, 0.2, n)])[None, :]
+    g = walls.compliance(x)
+    np.testing.assert_allclose(g, np.swapaxes(g, -1, -2), rtol=1e-12)  # Betti's reciprocity
+    forces = np.linspace(0.5, 2.0, n)
+    expected = sum(deflection(x[0, :n] - x[0, j], forces[j], K, EI, B) for j in range(n))
+    np.testing.assert_allclose(g[0, 0] @ forces, expected, rtol=1e-12)
+    assert np.all(np.linalg.eigvalsh(g[0, 0]) > 0.0)          # elastic: energy stored > 0
+
+
+def test_a_foundation_alone_is_a_spring_of_k_times_the_contact_width():
+    tiny = 1e-12
+    w0 = deflection(0.0, 1.0, K, tiny, B)
+    assert 1.0 / w0 == pytest.approx(K * B, rel=1e-6)
+    assert deflection(0.02, 1.0, K, tiny, B) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_stored_energy_is_the_work_of_the_loads_along_any_path():
+    """A conservative wall: the work of loading equals 1/2 F.G.F, whatever the order."""
+    walls = Walls([SHEET], Simulator(SHEET).table.side)
+    x = np.concatenate([np.arange(walls.n) * 0.011, np.arange(walls.n) * 0.011])[None, :]
+    g = walls.compliance(x)[0, 0]
+    final = np.zeros(walls.n)
+    final[[3, 4, 6]] = [2.0, 1.0, 0.5]
+    stored = 0.5 * final @ g @ final
+
+    def work(path):
+        total, steps = 0.0, 2000
+        for a, b in zip(path[:-1], path[1:]):
+            for s in range(steps):
+                f = a + (b - a) * (s + 0.5) / steps
+                total += f @ g @ ((b - a) / steps)
+        return total
+    together = work([np.zeros(walls.n), final])
+    one_by_one = [np.zeros(walls.n)]
+    for i in (6, 3, 4):
+        nxt = one_by_one[-1].copy()
+        nxt[i] = final[i]
+        one_by_one.append(nxt)
+    assert together == pytest.approx(stored, rel=1e-9)
+    assert work(one_by_one) == pytest.approx(stored, rel=1e-9)
+
+
+def test_the_coupled_step_balances_the_walls_with_the_contact_law():
+    sim = Simulator(SHEET)
+    worst = 0.0
+    for _ in range(1500):
+        sim.step()
+        g = sim.walls.compliance(sim._x)
+        forces = sim.walls._by_surface(sim.contacts.normal)
+        carried = (g @ forces[..., None])[..., 0]
+        worst = max(worst, np.abs(carried - sim.walls.shape_by_surface).max())
+    assert worst < 1e-8                                     # m, against ~1.5 mm deflections
+    assert sim.walls.deflection.max() > 5e-4                # the sheet did bend
+
+
+def test_rigid_walls_are_the_default_and_untouched():
+    assert Scenario().surface.foundation_stiffness == 0.0
+    plain = Simulator(Scenario())
+    other = Simulator(Scenario().with_values({'surface.bending_stiffness': 3.0,
+                                              'surface.contact_width': 0.01}))
+    assert plain.walls is None and other.walls is None
+    for _ in range(1500):
+        plain.step()
+        other.step()
+    assert np.array_equal(plain.q, other.q)                  # bit for bit
+
+
+def test_very_stiff_walls_are_the_rigid_ones():
+    rigid = Simulator(Scenario())
+    stiff = Simulator(Scenario().with_values({'surface.foundation_stiffness': 1e10,
+                                              'surface.bending_stiffness': 1e4}))
+    worst = 0.0
+    for _ in range(2000):
+        rigid.step()
+        stiff.step()
+        worst = max(worst, np.abs(rigid.q[:3] - stiff.q[:3]).max())
+    assert worst < 1e-6
+
+
+def test_soft_walls_give_way_and_the_depth_stays_below_its_limit():
+    tissue = Scenario().with_values({'surface.foundation_stiffness': 9e3,
+                                     'surface.bending_stiffness': 1.2e-5})
+    sim = Simulator(tissue)
+    for _ in range(3000):
+        sim.step()
+    assert sim.walls.deflection.max() > 5e-3                # walls pushed centimetre-wide
+    assert sim.depth.max() < tissue.surface.max_penetration
+    assert np.isfinite(sim.q).all()
+
+
+@pytest.mark.parametrize('name, value', [('surface.foundation_stiffness', -1.0),
+                                         ('surface.bending_stiffness', 0.0),
+                                         ('surface.contact_width', 0.0),
+                                         ('surface.contact_width', 0.06)])
+def test_wall_parameters_out_of_range_are_refused(name, value):
+    with pytest.raises(ParameterError, match=name.split('.')[1]):
+        Scenario().with_values({name: value})
