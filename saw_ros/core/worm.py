@@ -46,7 +46,7 @@ import numpy as np
 from saw_ros.core import walls
 from saw_ros.core.contact import hysteresis_factor
 from saw_ros.core.dynamics import GRAVITY
-from saw_ros.core.params import ParameterError, RobotParams, Scenario
+from saw_ros.core.params import ParameterError, RobotParams, Scenario, SurfaceParams
 
 # The two calibrated constants (see the module docstring): solved from AR 0.40 (0 deg) and
 # 0.29 (90 deg) at COF 1 with N = 4, s = 7 cm, m g = 3.07 N.
@@ -103,7 +103,7 @@ def anchor_normal_force(worm: WormParams, scenario: Scenario) -> float:
     return 2.0 * squeeze_force(scenario.surface, squeeze) + max(share, 0.0)
 
 
-def squeeze_force(surface, squeeze: float) -> float:
+def squeeze_force(surface: SurfaceParams, squeeze: float) -> float:
     """
     Return one side's normal force (N) of a cell pressed ``squeeze`` (m) into a surface.
 
