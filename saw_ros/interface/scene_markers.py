@@ -78,6 +78,31 @@ def surfaces(gap: float, centre_x: float) -> List[Shape]:
             for i, y in enumerate((0.0, gap))]
 
 
+def bent_surfaces(gap: float, along: np.ndarray, deflection: np.ndarray) -> List[Shape]:
+    """
+    Return the bottom and top surfaces bent as the walls are (core.walls): triangle strips.
+
+    ``along``: abscissae (m, increasing); ``deflection`` (2, m): each wall's deflection there,
+    bottom then top, > 0 away from the robot. Each surface is a band SURFACE_THICKNESS thick
+    following its deflected line (the bottom's top face at y = -w, the top's lower face at
+    y = gap + w), as thick along z as the flat strips.
+    """
+    shapes = []
+    z = DEPTH
+    for surface, (level, sign) in enumerate(((0.0, -1.0), (gap, 1.0))):
+        face = level + sign * np.asarray(deflection[surface], float)
+        back = face + sign * SURFACE_THICKNESS
+        a = np.stack([along[:-1], face[:-1]], axis=1)
+        b = np.stack([along[1:], face[1:]], axis=1)
+        c = np.stack([along[:-1], back[:-1]], axis=1)
+        d = np.stack([along[1:], back[1:]], axis=1)
+        # Two triangles a segment (a b c, b d c), in the plane z = DEPTH (the strips' front).
+        tri = np.stack([a, b, c, b, d, c], axis=1).reshape(-1, 2)
+        shapes.append(Shape('surfaces', surface, 'triangle_list', SURFACE_COLOUR, (1.0, 1.0, 1.0),
+                            points=np.column_stack([tri, np.full(len(tri), z)])))
+    return shapes
+
+
 def _to_surface(points: Union[np.ndarray, Sequence[Any]], x: float, y: float,
                 theta: float) -> np.ndarray:
     """Return body-frame points (complex) in the surface frame (complex)."""
@@ -217,7 +242,8 @@ def tracking(front: Optional[Point], back: Optional[Point],
 
 def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float],
           phase: Optional[float], contacts: Optional[np.ndarray] = None,
-          force_scale: float = FORCE_SCALE) -> List[Shape]:
+          force_scale: float = FORCE_SCALE,
+          walls: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> List[Shape]:
     """
     Return every shape of the ground truth at one instant (what /saw/markers draws).
 
@@ -225,9 +251,12 @@ def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float
 
     ``pose``: (x, y, pitch); ``phase``: the helix phase; ``contacts``: a structured array with the
     fields of /saw/contacts (x, y, normal_force, tangential_force, surface, slipping) or None.
+    ``walls``: (abscissae, deflections (2, m)) of bending walls (``bent_surfaces``), or None for
+    the flat ones.
     """
     x, y, theta = pose
-    shapes = surfaces(gap, x) + robot(robot_params, gap, x, y, theta, phase)
+    flat = surfaces(gap, x) if walls is None else bent_surfaces(gap, *walls)
+    shapes = flat + robot(robot_params, gap, x, y, theta, phase)
     if contacts is not None and len(contacts):
         shapes += squeezed(robot_params, gap, contacts)
         shapes += force_arrows(contacts['x'], contacts['y'], contacts['normal_force'],

@@ -36,6 +36,7 @@ CONTACT_WRENCH = '/saw/contact_wrench'
 JOINT_STATES = '/saw/joint_states'
 MOTOR = '/saw/motor'
 MOTOR_COMMANDS = '/saw/motor_controller/commands'
+WALLS = '/saw/walls'
 IMAGE = '/saw/camera/image_raw'
 IMAGE_COMPRESSED = '/saw/camera/image_raw/compressed'
 CAMERA_INFO = '/saw/camera/camera_info'
@@ -75,6 +76,9 @@ TOPICS: Tuple[Topic, ...] = (
           '60 Hz (speed_controller), or yours', '',
           "the helix's drive: [voltage V] with a motor, [frequency Hz] without "
           '(ros2_control forward-command convention; saw_ros.ros.command)'),
+    Topic(WALLS, 'sensor_msgs/msg/PointCloud2', 'tracking', 'simulator', '60 Hz', 'surface',
+          "the bending walls' shape (surface.foundation_stiffness > 0 only): x, y, "
+          'deflection, surface'),
     Topic(IMAGE, 'sensor_msgs/msg/Image', 'image', 'camera', '60 Hz', 'saw_camera',
           'virtual camera frames, bgr8 1280x720', recorded=False),
     Topic(IMAGE_COMPRESSED, 'sensor_msgs/msg/CompressedImage', 'image', 'camera', '60 Hz',

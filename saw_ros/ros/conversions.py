@@ -281,3 +281,38 @@ def motor_msg(voltage: float, current: float, nanoseconds: int,
     msg.present = voltage > 0.0
     msg.location = 'helix motor'
     return msg
+
+
+WALL_FIELDS = (PointField(name='x', offset=0, datatype=PointField.FLOAT32, count=1),
+               PointField(name='y', offset=4, datatype=PointField.FLOAT32, count=1),
+               PointField(name='z', offset=8, datatype=PointField.FLOAT32, count=1),
+               PointField(name='deflection', offset=12, datatype=PointField.FLOAT32, count=1),
+               PointField(name='surface', offset=16, datatype=PointField.UINT8, count=1))
+WALL_DTYPE = np.dtype({'names': ['x', 'y', 'z', 'deflection', 'surface'],
+                       'formats': ['<f4', '<f4', '<f4', '<f4', 'u1'],
+                       'offsets': [0, 4, 8, 12, 16], 'itemsize': 20})
+
+
+def walls_cloud(along: np.ndarray, deflection: np.ndarray, gap: float,
+                nanoseconds: int) -> PointCloud2:
+    """
+    Return the bending walls' shape as a PointCloud2 in ``surface`` (the /saw/walls topic).
+
+    One point per abscissa and wall: x, y of the deflected surface (the bottom at -w, the top at
+    gap + w), z 0, the deflection w (m, > 0 away from the robot) and surface (0 bottom, 1 top).
+    """
+    m = len(along)
+    points = np.zeros(2 * m, WALL_DTYPE)
+    for surface, (level, sign) in enumerate(((0.0, -1.0), (gap, 1.0))):
+        rows = points[surface * m:(surface + 1) * m]
+        rows['x'] = along
+        rows['y'] = level + sign * deflection[surface]
+        rows['deflection'] = deflection[surface]
+        rows['surface'] = surface
+    msg = PointCloud2(height=1, width=2 * m, fields=list(WALL_FIELDS), is_bigendian=False,
+                      point_step=WALL_DTYPE.itemsize, row_step=WALL_DTYPE.itemsize * 2 * m,
+                      is_dense=True)
+    msg.header.frame_id = SURFACE_FRAME
+    time_msg(nanoseconds, msg.header.stamp)
+    msg.data = points.tobytes()
+    return msg

@@ -42,6 +42,7 @@ import math
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -71,6 +72,7 @@ MAX_BATCH = 50               # steps per wake-up: bursts well below the queue de
 # /saw/motor per second of simulated time. Not every step: each 1 kHz topic costs the graph's
 # real-time factor, and 100 Hz still resolves the current's ripple at the wave's link rate.
 MOTOR_RATE = 100.0
+WALL_SAMPLES = 201           # points of each bending wall on /saw/walls (5 mm apart over 1 m)
 
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
 STATUS_PERIOD = 1.0          # s of simulated time between two statuses on /diagnostics
@@ -137,6 +139,9 @@ class SimulatorNode(Node):
         # TF surface -> base_link with the markers (the viewers' rate, not 1 kHz: /saw/pose has
         # every step), and the URDF of this robot, latched (saw_ros.interface.urdf).
         self._pub_tf = tf.publisher(self)
+        walls_topic = topics.topic(topics.WALLS)
+        self._pub_walls = self.create_publisher(message_class(walls_topic.type), walls_topic.name,
+                                                publisher_profile(walls_topic.qos))
         self._pub_description = self.create_publisher(
             String, topics.ROBOT_DESCRIPTION,
             publisher_profile(topics.topic(topics.ROBOT_DESCRIPTION).qos))
@@ -359,9 +364,15 @@ class SimulatorNode(Node):
                                                    out=self._motor_msg))
         if self._markers.due(ns):
             scenario = self.params.scenario
+            walls = None
+            if sim.walls is not None:
+                # The bending walls (core.walls): drawn bent, and their shape on /saw/walls.
+                along = x + np.linspace(-0.5, 0.5, WALL_SAMPLES) * scene_markers.SURFACE_LENGTH
+                walls = (along, sim.walls.shape(sim.tip_positions.real, along)[0])
+                self._pub_walls.publish(conv.walls_cloud(*walls, scenario.conditions.gap, ns))
             self._pub_markers.publish(markers.marker_array_cdr(scene_markers.scene(
                 scenario.robot, scenario.conditions.gap, (x, y, theta), float(sim.phase[0]),
-                points), ns))
+                points, walls=walls), ns))
             self._pub_tf.publish(tf.message([tf.planar(frames.SURFACE, frames.BASE_LINK, ns,
                                                        x, y, theta)]))
 
