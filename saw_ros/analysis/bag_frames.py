@@ -8,7 +8,7 @@ and handed on as bgr8.
 """
 from __future__ import annotations
 
-from typing import Iterator, Optional, Tuple
+from typing import Callable, Iterator, Optional, Tuple
 
 import numpy as np
 from saw_ros.bag.reader import BagReader, BagReadError
@@ -66,11 +66,13 @@ class BagFrames:
         return f'{self.bag} ({self.topic})'
 
 
-def bag_video(bag, output, topic: Optional[str] = None) -> Tuple[int, float]:
+def bag_video(bag, output, topic: Optional[str] = None,
+              progress: Optional[Callable[[int, int], None]] = None) -> Tuple[int, float]:
     """
     Write the camera frames of ``bag`` to the video ``output``; return (frames, fps).
 
     The frames' rate comes from their stamps (the median interval), in the order recorded.
+    ``progress(frames written, frames recorded)`` is called after every frame.
     """
     source = BagFrames(bag, topic)
     fps = source.fps
@@ -82,6 +84,8 @@ def bag_video(bag, output, topic: Optional[str] = None) -> Tuple[int, float]:
                 writer = VideoWriter(output, fps, frame.shape[1::-1])
             writer.write(frame)
             frames += 1
+            if progress is not None:
+                progress(frames, source.count)
     finally:
         if writer is not None:
             writer.close()

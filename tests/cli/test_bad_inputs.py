@@ -144,9 +144,37 @@ CASES = [
     ('demo --out {d}/text.txt', 'is a file, not a folder'),
     ('demo --slope-deg 100', '--slope-deg = 100'),
     ('demo --params-file {d}/bad.yaml', 'is not valid YAML'),
+    # shape-drive
+    ('shape-drive --voltage 0', '--voltage must be above 0 V'),
+    ('shape-drive --generations 0', '--generations 0: must be at least 1'),
+    ('shape-drive --out {d}/text.txt', '--out {d}/text.txt: is a file, not a folder'),
+    ('shape-drive --slope-deg 100', '--slope-deg = 100'),
     # bench
     ('bench --only nosuch', "unknown benchmark(s) ['nosuch']"),
     ('bench --only core --logs {d}/text.txt', '--logs {d}/text.txt: is a file, not a folder'),
+    # bag
+    ('bag', 'required: ACTION'),
+    ('bag info {d}/none', 'none'),
+    ('bag info {d}/text.txt', 'is not an MCAP file'),
+    ('bag play {d}/none', 'no bag at {d}/none'),
+    ('bag play {d}/text.txt', 'is not an MCAP file'),
+    ('bag play ' + BAG + ' -r 0', '--rate = 0 is out of range'),
+    ('bag play ' + BAG + ' -r nan', '--rate = nan'),
+    ('bag video {d}/none', 'none'),
+    ('bag video {d}/text.txt', 'is not an MCAP file'),
+    ('bag video ' + BAG, 'holds no frames'),
+    ('bag video ' + CAMERA_BAG + ' --topic /clock', '/clock is not an image topic'),
+    ('bag video ' + CAMERA_BAG + ' --topic /nosuch', 'holds no frames on /nosuch'),
+    ('bag video ' + CAMERA_BAG + ' -o {d}/camera.txt', 'must end in .mp4 or .avi'),
+    ('bag video ' + CAMERA_BAG + ' -o {d}/text.txt/c.mp4', 'cannot be written'),
+    ('bag record -o {d}/text.txt', 'exists already'),
+    ('bag record -o {d}/text.txt/bag', 'cannot be written'),
+    ('bag record "bad topic"', "topic 'bad topic': not a valid ROS topic name"),
+    ('bag reindex {d}/none', 'is not a bag directory'),
+    ('bag reindex {d}/text.txt', 'is not a bag directory'),
+    ('bag reindex {d}/dir', 'holds no .mcap file'),
+    ('bag info {d}/dir', 'holds no .mcap file'),
+    ('bag frobnicate', "invalid choice: 'frobnicate'"),
 ]
 
 
@@ -190,3 +218,12 @@ def test_bad_input_is_one_line_and_exit_code_2(folder, command, expected):
     made = {'text.txt', 'text.mp4', 'bad.yaml', 'list.yaml', 'typo.yaml', 'dir', 'dir.csv',
             'text_video.csv', 'no_video.csv', 'level.mp4', 'volts.csv', 'no_scale.csv'}
     assert {p.name for p in folder.iterdir()} == made
+
+
+def test_every_subcommand_has_bad_inputs_in_the_table():
+    """A new subcommand comes with its rows: the table is the error path's specification."""
+    from saw_ros.cli.main import build_parser
+    parser = build_parser()
+    names = parser._subparsers._group_actions[0].choices
+    tried = {c.split()[0] for c, _ in CASES if c}
+    assert not set(names) - tried, f'no bad input tried for: {sorted(set(names) - tried)}'

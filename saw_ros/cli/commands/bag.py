@@ -25,6 +25,7 @@ import os
 import subprocess
 import sys
 
+from saw_ros.cli.checks import output_file, spec_number, VIDEO_SUFFIXES
 from saw_ros.cli.errors import UserError
 
 HELP = 'bag info / record / play / video / reindex (rosbag2-compatible MCAP bags)'
@@ -111,6 +112,31 @@ def _node(name, params):
         return 0
 
 
+IMAGE_TYPES = ('sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage')
+
+
+def _open(bag):
+    """Return a BagReader of ``bag``; a UserError (one line) when it is not a bag."""
+    from saw_ros.bag.reader import BagReader, BagReadError
+    try:
+        reader = BagReader(bag)
+        reader.info()           # the reader opens lazily: reading its summary finds a non-bag
+    except BagReadError as exc:
+        raise UserError(str(exc)) from None
+    return reader
+
+
+def _check_topic_name(name: str) -> None:
+    """Refuse a topic name ROS would refuse, before the recorder starts."""
+    from rclpy.exceptions import InvalidTopicNameException
+    from rclpy.validate_topic_name import validate_topic_name
+    try:
+        validate_topic_name(name)
+    except InvalidTopicNameException as exc:
+        reason = str(exc).splitlines()[0]
+        raise UserError(f'topic {name!r}: not a valid ROS topic name ({reason})') from None
+
+
 def run(args):
     if args.bag_command == 'info':
         from saw_ros.bag.reader import BagDamagedError, BagReader, BagReadError
@@ -127,13 +153,20 @@ def run(args):
         if args.output:
             if os.path.lexists(args.output):
                 raise UserError(f'{args.output} exists already (a recording is never overwritten)')
+            output_file(args.output, '-o')
             params['output'] = args.output
+        for name in args.topics:
+            _check_topic_name(name)
         if args.topics:
             params['topics'] = '[' + ','.join(args.topics) + ']'
         return _node('recorder', params)
     if args.bag_command == 'play':
+        from saw_ros.ros.nodes.player import PARAMETERS
         if not os.path.exists(args.bag):
             raise UserError(f'no bag at {args.bag}')
+        (meta,) = [m for name, _, m in PARAMETERS if name == 'rate']
+        spec_number(args.rate, '--rate', meta)
+        _open(args.bag)                 # not a bag: said here, not by the player's FATAL line
         return _node('player', {'bag': os.path.abspath(args.bag), 'rate': float(args.rate)})
     if args.bag_command == 'reindex':
         from saw_ros.bag.reindex import reindex
@@ -144,12 +177,28 @@ def run(args):
             raise UserError(f'cannot reindex {args.bag}: {exc}') from None
         return 0
     if args.bag_command == 'video':
+        from tqdm import tqdm
+
         from saw_ros.analysis.bag_frames import bag_video
         from saw_ros.bag.reader import BagReadError
-        try:
-            frames, fps = bag_video(args.bag, args.output, args.topic or None)
-        except BagReadError as exc:
-            raise UserError(str(exc)) from None
+        output_file(args.output, '-o', VIDEO_SUFFIXES)
+        if args.topic:
+            recorded = _open(args.bag).info()['topics']
+            kind = recorded[args.topic].type if args.topic in recorded else None
+            if kind is not None and kind not in IMAGE_TYPES:
+                images = [t.name for t in recorded.values() if t.type in IMAGE_TYPES]
+                raise UserError(f'--topic {args.topic} is not an image topic ({kind}); image '
+                                f'topics recorded: {", ".join(images) or "none"}')
+        # disable=None: the bar only on a terminal, not in logs or pipes.
+        with tqdm(unit='frame', desc='bag video', file=sys.stderr, leave=False,
+                  disable=None) as bar:
+            def progress(done, total):
+                bar.total = total
+                bar.update(done - bar.n)
+            try:
+                frames, fps = bag_video(args.bag, args.output, args.topic or None, progress)
+            except BagReadError as exc:
+                raise UserError(str(exc)) from None
         print(f'{args.output}: {frames} frames at {fps:g} fps')
         return 0
     print(f'unknown action {args.bag_command}', file=sys.stderr)
