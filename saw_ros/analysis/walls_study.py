@@ -65,7 +65,7 @@ def _job(job: Tuple[Scenario, float]) -> Tuple[float, float, str]:
             sim.step()
             t[k], q[k] = sim.t, sim.q[:, 0]
             if sim.walls is not None:
-                opened[k] = sim.walls.deflection[0].max()
+                opened[k] = sim.walls.largest[0]
     except DivergenceError:
         return math.nan, float(opened[:max(k, 1)].max()), 'pushed through'
     metrics = analyse(t, q, scenario.robot, scenario.frequency)

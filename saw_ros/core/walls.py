@@ -107,8 +107,17 @@ class Walls:
         self._decay = ((1.0 - 1.0j) * self.beta)[:, None, None, None]
         self._half = self.half[:, None, None, None]
         self._gain = self.gain[:, None, None, None]
-        self.shape_by_surface = np.zeros((count, 2, n))    # deflection at each tip, m (> 0: away)
-        self.forces = np.zeros((count, 2, n))               # what the deflection carries, N
+        self.forces = np.zeros((count, 2, n))               # each tip's load on its wall, N
+        self.largest = np.zeros(count)                      # the largest deflection, m
+        self._x = np.zeros((count, 2, n))                   # where the tips were, m
+        self._shape: Optional[np.ndarray] = np.zeros((count, 2, n))
+
+    @property
+    def shape_by_surface(self) -> np.ndarray:
+        """Return the deflection at each tip (S, 2, n), m, > 0 away: bottom tips, then top."""
+        if self._shape is None:     # computed when asked: the step itself needs only the loaded
+            self._shape = (self.compliance(self._x) @ self.forces[..., None])[..., 0]
+        return self._shape
 
     @property
     def deflection(self) -> np.ndarray:
@@ -116,8 +125,9 @@ class Walls:
         return self.shape_by_surface.reshape(len(self.beta), 2 * self.n)
 
     def reset(self) -> None:
-        self.shape_by_surface[:] = 0.0
         self.forces[:] = 0.0
+        self.largest[:] = 0.0
+        self._shape = np.zeros_like(self.forces)
 
     def _by_surface(self, values):
         """(S, P) -> (S, 2, n) view, bottom tips then top tips; scalars stay scalars."""
@@ -163,12 +173,13 @@ class Walls:
         """
         d = self._by_surface(penetration)
         xs = self._by_surface(x)
-        last = self.shape_by_surface
-        margin = CANDIDATE_MARGIN * np.abs(last).max(axis=-1, keepdims=True) + MIN_MARGIN
+        margin = CANDIDATE_MARGIN * self.largest[:, None, None] + MIN_MARGIN
         count = int((d > -margin).sum(axis=-1).max())
+        self._x[:] = xs
+        self._shape = None
         if count == 0:
             self.forces[:] = 0.0
-            self.shape_by_surface[:] = 0.0
+            self.largest[:] = 0.0
             return penetration.copy()
         pick = np.argsort(-d, axis=-1)[..., :count]                 # (S, 2, K), deepest first
         take = lambda a: a if np.ndim(a) == 0 else np.take_along_axis(  # noqa: E731
@@ -183,7 +194,9 @@ class Walls:
         # leaves the band (loading/unloading faster than hysteresis_speed).
         width = half / rate
         eye = np.eye(count)
-        w = np.take_along_axis(last, pick, axis=-1)                  # warm start: last shape
+        # Warm start: the last step's loads on these tips where they are now (a step moves
+        # them by less than a tenth of a millimetre).
+        w = (g @ np.take_along_axis(self.forces, pick, axis=-1)[..., None])[..., 0]
         for _ in range(MAX_NEWTON):
             delta = dk - w
             touching = np.maximum(delta, 0.0)
@@ -195,12 +208,18 @@ class Walls:
             power = touching ** p
             force = factor * power
             residual = w - (g @ force[..., None])[..., 0]
-            if np.abs(residual).max() <= TOLERANCE:
+            open_ = np.abs(residual).max(axis=-1) > TOLERANCE         # (S, 2) still to solve
+            if not open_.any():
                 break
             slope = factor * p * touching ** (p - 1.0)
             slope += np.where(band & (delta > 0.0), rate * power, 0.0)
-            # d residual / d w = I + G diag(slope)  (delta = d - w).
-            step = np.linalg.solve(eye + g * slope[..., None, :], residual[..., None])[..., 0]
+            # d residual / d w = I + G diag(slope)  (delta = d - w), for the walls not there yet.
+            step = np.zeros_like(w)
+            if open_.all():
+                step = np.linalg.solve(eye + g * slope[..., None, :], residual[..., None])[..., 0]
+            else:
+                step[open_] = np.linalg.solve(eye + g[open_] * slope[open_][:, None, :],
+                                              residual[open_][..., None])[..., 0]
             # The law is smooth between its kinks only: a step that would carry a tip across
             # one stops just past it (the next step starts from the other side's slope). The
             # residual is monotone in w, so this cannot cycle.
@@ -216,9 +235,12 @@ class Walls:
             w -= np.minimum(fraction, 1.0) * step
         self.forces[:] = 0.0
         np.put_along_axis(self.forces, pick, force, axis=-1)
-        # The shape at every tip, from the loads of the ones that can touch.
-        self.shape_by_surface[:] = (self.compliance(xs, xk) @ force[..., None])[..., 0]
-        return penetration - self.deflection
+        self.largest[:] = w.max(axis=(1, 2))
+        # The others are not touching (shallower than the margin, more than any uplift): the
+        # contact law sees them free with or without the shape, which is computed when asked.
+        depth = self._by_surface(penetration.copy())
+        np.put_along_axis(depth, pick, dk - w, axis=-1)
+        return depth.reshape(penetration.shape)
 
     def shape(self, x_tips: np.ndarray, samples: np.ndarray) -> np.ndarray:
         """
