@@ -48,6 +48,10 @@ class CommandInput:
         self.subscription = node.create_subscription(
             self._type, entry.name, self._on_command, profile(entry.qos))
         self._take = self.subscription.handle.take_message
+        node.get_logger().info(
+            f'commands on {entry.name}: ' + ('[motor voltage, V]' if sim.motor_on else
+                                             '[helix frequency, Hz] (no motor modelled: '
+                                             'motor.voltage = 0)'))
 
     @property
     def unit(self) -> str:
