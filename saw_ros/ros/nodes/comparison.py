@@ -29,8 +29,6 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import ParameterEvent, ParameterType
-from rcl_interfaces.srv import GetParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -42,22 +40,15 @@ from saw_ros.interface import topics
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.ros.cdr import NS_PER_S
-from saw_ros.ros.params import declare_spec, SIMULATOR_EXCLUDED
+from saw_ros.ros.params import declare_spec
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_events
+from saw_ros.ros.simulator_parameters import SCENARIO_NAMES, SimulatorParameters
 from sensor_msgs.msg import JointState
 
 TRACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-
-
-def _value(p):
-    """rcl_interfaces/ParameterValue -> Python value (only the types we declare)."""
-    return {ParameterType.PARAMETER_DOUBLE: p.double_value,
-            ParameterType.PARAMETER_INTEGER: p.integer_value,
-            ParameterType.PARAMETER_BOOL: p.bool_value,
-            ParameterType.PARAMETER_STRING: p.string_value}.get(p.type)
 
 
 # (name, default, spec metadata); read_only ones are read once, at start. declare_spec checks
@@ -125,11 +116,13 @@ class ComparisonNode(Node):
         except (ParameterException, ValueError) as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from None
         self.reference = read_reference(self.get_parameter('reference_file').value)
-        self.scenario_values = {}
         self.scenario = Scenario()
         self.comparator = RunComparator(self.scenario.robot, float('nan'),
                                         self.get_parameter('steady_threshold').value)
-        self.simulator = self.get_parameter('simulator_node').value.strip('/')
+        # The run's conditions, from the simulator (saw_ros.ros.simulator_parameters).
+        self.simulator_parameters = SimulatorParameters(
+            self, self.get_parameter('simulator_node').value, SCENARIO_NAMES, self._apply)
+        self.simulator = self.simulator_parameters.simulator
         self.final_sent = False
         self.done = False
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
@@ -148,56 +141,28 @@ class ComparisonNode(Node):
         self._match_timer = self.create_timer(0.05, self._report_matched, clock=self._wall)
         self.create_subscription(PoseStamped, topics.TRACKING_POSE, self._on_tracked,
                                  TRACK_QOS)
-        self.create_subscription(ParameterEvent, '/parameter_events', self._on_parameter_event,
-                                 QoSProfile(depth=100))
-        self._param_client = self.create_client(
-            GetParameters, f'/{self.simulator}/get_parameters')
-        self._pending = None
         self.create_timer(self.get_parameter('report_period').value, self._tick,
                           clock=self._wall)
 
     # -- the run's conditions, from the simulator ---------------------------------------------
-    def _request_parameters(self):
-        if self._pending is not None or not self._param_client.service_is_ready():
-            return
-        # rclpy answers nothing at all if one name is not declared: ask only for what the
-        # simulator declares (it replaces integration.duration by its own `duration`).
-        names = [n for n in Scenario().flat() if n not in SIMULATOR_EXCLUDED]
-        self._pending = self._param_client.call_async(GetParameters.Request(names=names))
-        self._pending.add_done_callback(lambda f, names=names: self._on_parameters(names, f))
-
-    def _on_parameters(self, names, future):
-        self._pending = None
-        result = future.result()
-        if result is None:
-            return
-        values = {n: _value(v) for n, v in zip(names, result.values)}
-        self._apply({k: v for k, v in values.items() if v is not None})
-
-    def _on_parameter_event(self, event: ParameterEvent):
-        if event.node.strip('/') != self.simulator or not self.scenario_values:
-            return
-        changed = {p.name: _value(p.value) for p in list(event.changed_parameters)
-                   + list(event.new_parameters)}
-        self._apply({k: v for k, v in changed.items() if k in self.scenario_values})
-
-    def _apply(self, values):
-        merged = dict(self.scenario_values, **values)
+    def _apply(self, merged) -> bool:
+        """Take the simulator's values (SimulatorParameters' callback); False refuses them."""
+        before = self.simulator_parameters.values
         try:
             self.scenario = Scenario().with_values(merged)
         except Exception as exc:  # the simulator validated them; keep the last good set
             self.get_logger().warning(f'ignoring simulator parameters: {exc}')
-            return
-        if self.scenario_values and merged != self.scenario_values:
+            return False
+        if before and merged != before:
             # New conditions: a new steady state to wait for.
             self.comparator.reset()
-            changed = sorted(k for k in merged if merged[k] != self.scenario_values.get(k))
+            changed = sorted(k for k in merged if merged[k] != before.get(k))
             self.get_logger().info(f'simulator parameters changed ({", ".join(changed)}): '
                                    f'comparison restarted')
-        self.scenario_values = merged
         self.comparator.robot = self.scenario.robot
         self.comparator.frequency = self.scenario.frequency
         self._follow_helix(self.scenario.motor.voltage > 0.0)
+        return True
 
     def _follow_helix(self, on: bool) -> None:
         if on and self._helix_sub is None:
@@ -239,8 +204,8 @@ class ComparisonNode(Node):
 
     # -- reports -----------------------------------------------------------------------------
     def _tick(self):
-        if not self.scenario_values:
-            self._request_parameters()
+        if not self.simulator_parameters.known:
+            self.simulator_parameters.request()
             return
         idle = self._last_truth_wall is not None and (
             time.monotonic() - self._last_truth_wall) > self.get_parameter(
@@ -297,7 +262,8 @@ class ComparisonNode(Node):
                 Path(path).write_text(json.dumps(values, indent=2, default=str) + '\n')
 
     def close(self):
-        if not self.final_sent and self.scenario_values and self._last_truth_ns is not None:
+        if not self.final_sent and self.simulator_parameters.known and \
+                self._last_truth_ns is not None:
             self.publish(final=True)
 
 

@@ -1,0 +1,82 @@
+"""
+The simulator's parameters, for every node that needs them (comparison, camera): one way.
+
+No node repeats the simulator's robot or conditions by hand. ``SimulatorParameters`` asks the
+simulator node for the names it is given (its get_parameters service, once that answers: call
+``request`` from a timer until ``known``) and follows their changes on /parameter_events.
+``on_values`` gets the names with the values the simulator runs, at the answer and at every
+change; it returns False to refuse a set, and the last accepted one stays.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Dict, Optional, Sequence
+
+from rcl_interfaces.msg import ParameterEvent, ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from saw_ros.core.params import Scenario
+from saw_ros.ros.params import SIMULATOR_EXCLUDED
+
+# Every Scenario name the simulator declares (it replaces integration.duration by its own
+# `duration`): rclpy answers nothing at all if one name asked for is not declared.
+SCENARIO_NAMES = tuple(n for n in Scenario().flat() if n not in SIMULATOR_EXCLUDED)
+
+
+def value_of(p: ParameterValue) -> Any:
+    """Return a rcl_interfaces/ParameterValue as Python (only the types we declare; else None)."""
+    return {ParameterType.PARAMETER_DOUBLE: p.double_value,
+            ParameterType.PARAMETER_INTEGER: p.integer_value,
+            ParameterType.PARAMETER_BOOL: p.bool_value,
+            ParameterType.PARAMETER_STRING: p.string_value}.get(p.type)
+
+
+class SimulatorParameters:
+    """The values of ``names`` as the simulator node ``simulator`` runs them (module docstring)."""
+
+    def __init__(self, node: Node, simulator: str, names: Sequence[str],
+                 on_values: Callable[[Dict[str, Any]], bool]):
+        self.simulator = simulator.strip('/')
+        self.names = list(names)
+        self.values: Dict[str, Any] = {}        # the last set on_values accepted
+        self._on_values = on_values
+        self._client = node.create_client(GetParameters, f'/{self.simulator}/get_parameters')
+        self._pending: Optional[Any] = None
+        node.create_subscription(ParameterEvent, '/parameter_events', self._on_event,
+                                 QoSProfile(depth=100))
+
+    @property
+    def known(self) -> bool:
+        """Return whether the simulator's values have been received (and accepted)."""
+        return bool(self.values)
+
+    def available(self) -> bool:
+        """Return whether the simulator's parameter service answers."""
+        return bool(self._client.service_is_ready())
+
+    def request(self) -> None:
+        """Ask the simulator, unless its values are known, asked for already or it is not there."""
+        if self.values or self._pending is not None or not self._client.service_is_ready():
+            return
+        self._pending = self._client.call_async(GetParameters.Request(names=self.names))
+        self._pending.add_done_callback(self._on_answer)
+
+    def _on_answer(self, future: Any) -> None:
+        self._pending = None
+        result = future.result()
+        if result is None:
+            return
+        values = {n: value_of(v) for n, v in zip(self.names, result.values)}
+        self._update({k: v for k, v in values.items() if v is not None})
+
+    def _on_event(self, event: ParameterEvent) -> None:
+        if event.node.strip('/') != self.simulator or not self.values:
+            return
+        changed = {p.name: value_of(p.value) for p in list(event.changed_parameters)
+                   + list(event.new_parameters)}
+        self._update({k: v for k, v in changed.items() if k in self.values})
+
+    def _update(self, values: Dict[str, Any]) -> None:
+        merged = dict(self.values, **values)
+        if self._on_values(merged):
+            self.values = merged
