@@ -18,8 +18,8 @@ def _sustains_up_to(limit, calls):
 
 
 @pytest.mark.parametrize('limit', [0.6, 1.0, 1.5, 2.0, 7.0, 1e9])
-def test_pipeline_ladder_finds_the_limit_or_says_it_is_a_lower_bound(tmp_path, monkeypatch,
-                                                                      limit):
+def test_pipeline_ladder_finds_the_limit_or_says_it_is_a_lower_bound(
+        tmp_path, monkeypatch, limit):
     from saw_ros.bench import pipeline
     calls = []
     monkeypatch.setattr(pipeline, 'measure', _sustains_up_to(limit, calls))

@@ -71,8 +71,8 @@ def scenario_from_args(args) -> Scenario:
         if unknown:
             more = f', ... ({len(unknown)} in all)' if len(unknown) > 5 else ''
             raise UserError(f'--params-file {args.params_file}: not parameters of the simulator: '
-                            f'{", ".join(unknown[:5])}{more} (saw-ros simulate --list names the '
-                            f'model\'s)')
+                            f'{", ".join(unknown[:5])}{more} (saw-ros simulate --list names those '
+                            f'of the model)')
         scenario = load_scenario(args.params_file)
     else:
         scenario = Scenario()
