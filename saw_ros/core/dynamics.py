@@ -151,10 +151,10 @@ class Simulator:
 
         def per_scenario(get):
             """
-            Return a scalar where every scenario agrees.
+            Return a scalar where every scenario agrees, else one value per scenario.
 
-            (sweeps vary one or two parameters: scalar operands are the cheapest), else one value
-            per scenario broadcast to (S, P) once (a same-shape operand is 2-3x faster than an (S,
+            Sweeps vary one or two parameters: scalar operands are the cheapest. The values per
+            scenario are broadcast to (S, P) once (a same-shape operand is 2-3x faster than an (S,
             1) column broadcast at every step).
             """
             values = np.array([get(s) for s in scenarios], dtype=float)

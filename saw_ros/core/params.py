@@ -47,7 +47,7 @@ def spec_meta(unit: str, description: str, low: Optional[float] = None,
     """
     Return the metadata of a spec() field, for a parameter that is no dataclass field.
 
-    (a node's own: its topics, its frame rate...).
+    Such as a node's own: its topics, its frame rate...
     """
     return {'unit': unit, 'description': description, 'low': low, 'high': high,
             'low_open': low_open, 'high_open': high_open, **extra}
@@ -56,9 +56,9 @@ def spec_meta(unit: str, description: str, low: Optional[float] = None,
 def spec_entries(cls, names: Optional[Iterable[str]] = None
                  ) -> Iterator[Tuple[str, Any, Dict[str, Any]]]:
     """
-    (name, default, metadata) of the spec() fields of dataclass ``cls``.
+    Yield (name, default, metadata) of the spec() fields of dataclass ``cls``.
 
-    (all of them, or ``names`` in that order).
+    All of them, or ``names`` in that order.
     """
     fields = {f.name: f for f in dataclasses.fields(cls) if 'unit' in f.metadata}
     for name in (fields if names is None else names):
@@ -380,10 +380,10 @@ class Scenario:
     @property
     def frequency(self) -> float:
         """
-        Helix frequency of this run, Hz.
+        Return the helix frequency of this run, Hz.
 
-        conditions.frequency, or with motor.voltage set the motor's no-load frequency at that
-        voltage (a load slows the helix below it: the simulation records the actual speed,
+        That is conditions.frequency, or with motor.voltage set the motor's no-load frequency at
+        that voltage (a load slows the helix below it: the simulation records the actual speed,
         ``Trajectory.omega``).
         """
         if self.motor.voltage > 0.0:

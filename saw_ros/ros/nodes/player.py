@@ -286,10 +286,10 @@ class Player(Node):
 
     def start_services(self) -> None:
         """
-        Serve the parameter services.
+        Serve the parameter services (and the node's other callbacks) from a thread.
 
-        (and the rest of the node's callbacks) from a thread while play() publishes: a `ros2 param
-        set` then gets its answer (refused: read-only).
+        They run while play() publishes: a `ros2 param set` then gets its answer (refused:
+        read-only).
         """
         from rclpy.executors import SingleThreadedExecutor
         self._executor = SingleThreadedExecutor(context=self.context)

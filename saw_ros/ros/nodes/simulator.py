@@ -378,10 +378,10 @@ class SimulatorNode(Node):
 
     def close(self) -> None:
         """
-        Say how many steps went out.
+        Say how many steps went out (every topic got each of them once).
 
-        (every topic got each of them once; tests compare with recordings). run_node then waits for
-        subscribers to acknowledge them (common.flush).
+        Tests compare that with recordings. run_node then waits for subscribers to acknowledge
+        them (common.flush).
         """
         self.get_logger().info(f'stopped after {self.steps} steps (t = '
                                f'{self.steps * self.dt:.3f} s)')
@@ -393,11 +393,12 @@ class SimulatorNode(Node):
 
 def spin(node: SimulatorNode) -> None:
     """
-    Spin until stopped (SIGINT, SIGTERM: between two batches of steps, never inside one) or.
+    Spin until stopped, or with ``duration`` set until the run is complete.
 
-    With ``duration`` set, until the run is complete. On the EventsExecutor: the
-    SingleThreadedExecutor's Python wait set (two QoS event handlers per publisher) cost about
-    1 ms a wake-up, 0.2 of a core at 200 wake-ups a second whatever the real-time factor.
+    A stop (SIGINT, SIGTERM) takes effect between two batches of steps, never inside one. On the
+    EventsExecutor: the SingleThreadedExecutor's Python wait set (two QoS event handlers per
+    publisher) cost about 1 ms a wake-up, 0.2 of a core at 200 wake-ups a second whatever the
+    real-time factor.
     """
     spin_node(node, until=lambda: node.finished)
 
