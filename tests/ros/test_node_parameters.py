@@ -188,9 +188,9 @@ def test_player_parameters_are_read_only_while_playing(tmp_path, ros_context):
 @pytest.mark.slow
 def test_player_end_does_not_wait_forever_for_a_stalled_subscriber(tmp_path):
     """
-    A reliable subscriber that stops acknowledging.
+    A reliable subscriber that stops acknowledging no longer keeps the player from exiting.
 
-    (here: SIGSTOP) no longer keeps the player from exiting: it waits ACK_TIMEOUT, names the topic,
+    Here the subscriber is stopped (SIGSTOP): the player waits ACK_TIMEOUT, names the topic,
     exits 0.
     """
     from saw_ros.ros.runtime import FLUSH_TIMEOUT as ACK_TIMEOUT
