@@ -135,9 +135,9 @@ def test_pink_things_next_to_a_tracked_marker(level_run, mirrored_tracking):
     """
     While tracking: a pink blob 20 px from the front marker is not it.
 
-    The frame is ok, the front where it is; a pink disc overlapping the marker (one blob, twice its size)
-    makes the front ambiguous; with the front hidden, two blobs equally near its expected place
-    too.
+    The frame is ok, the front where it is; a pink disc overlapping the marker (one blob, twice its
+    size) makes the front ambiguous; with the front hidden, two blobs equally near its expected
+    place too.
     """
     r, tracker = mirrored_tracking
     pose = level_run.pose_at(2.5)
