@@ -28,7 +28,7 @@ class ParameterError(ValueError):
 
 def spec(default: Any, unit: str, description: str, low: Optional[float] = None,
          high: Optional[float] = None, low_open: bool = False, high_open: bool = False,
-         **extra: Any):
+         **extra: Any) -> Any:
     """
     Return a dataclass field with its unit, range and description kept beside the default.
 
@@ -53,7 +53,7 @@ def spec_meta(unit: str, description: str, low: Optional[float] = None,
             'low_open': low_open, 'high_open': high_open, **extra}
 
 
-def spec_entries(cls, names: Optional[Iterable[str]] = None
+def spec_entries(cls: type, names: Optional[Iterable[str]] = None
                  ) -> Iterator[Tuple[str, Any, Dict[str, Any]]]:
     """
     Yield (name, default, metadata) of the spec() fields of dataclass ``cls``.
@@ -140,14 +140,14 @@ class _Validated:
 
     section: str = ''
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_fields(self, f'{self.section}.')
         self._check()
 
-    def _check(self):
+    def _check(self) -> None:
         """Check that involve several fields."""
 
-    def replace(self, **changes):
+    def replace(self: Any, **changes: Any) -> Any:
         return dataclasses.replace(self, **changes)
 
 
@@ -191,7 +191,7 @@ class RobotParams(_Validated):
     def wave_length_along_body(self) -> float:
         return self.base_link_width + self.wave_links * self.link
 
-    def _check(self):
+    def _check(self) -> None:
         if self.amplitude >= self.base_link_width:
             raise ParameterError(
                 f'robot.amplitude = {self.amplitude:g} m is invalid: the base link '
@@ -345,7 +345,7 @@ class Scenario:
     integration: IntegrationParams = field(default_factory=IntegrationParams)
     motor: MotorParams = field(default_factory=MotorParams)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # The robot starts centred in the gap; its crests must leave a fifth of max_penetration
         # for the motion (at the full depth a 27.5 mm gap diverged within 5 ms, at 80 % none did).
         lowest = self.robot.height - 2.0 * PLACEMENT_SHARE * self.surface.max_penetration
@@ -422,7 +422,7 @@ class Scenario:
 
         Unknown names raise.
         """
-        groups = {s: {} for s in self.SECTIONS}
+        groups: Dict[str, Dict[str, Any]] = {s: {} for s in self.SECTIONS}
         for name, value in values.items():
             section, _, key = name.partition('.')
             if section not in groups or key not in {f.name for f in

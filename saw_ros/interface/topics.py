@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import sys
-from typing import List, Tuple
+from typing import List, Optional, Tuple
 
 
 @dataclass(frozen=True)
@@ -174,7 +174,7 @@ def record_topics_yaml() -> str:
     return '\n'.join(lines) + '\n'
 
 
-def main(argv=None) -> int:
+def main(argv: Optional[List[str]] = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 2 or argv[0] != '--write-record-yaml':
         print('usage: python -m saw_ros.interface.topics --write-record-yaml PATH',

@@ -16,8 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 STRICT_LAYERS = ('core', 'interface')
 # Modules of the strict layers not annotated yet (they were being changed when the test came).
 NOT_YET_STRICT = {
-    'core/drive.py', 'core/dynamics.py', 'core/motor.py', 'core/params.py', 'core/stability.py',
-    'core/walls.py', 'interface/topics.py',
+    'core/drive.py', 'core/dynamics.py', 'core/stability.py', 'core/walls.py',
 }
 # Modules that do not pass mypy's default checks yet.
 NOT_YET_CHECKED = {
@@ -29,11 +28,11 @@ NOT_YET_CHECKED = {
     'bag/reindex.py', 'bag/writer.py', 'bench/__init__.py', 'bench/drive.py', 'bench/loadgen.py',
     'bench/simulator_node.py', 'cli/commands/bag.py', 'cli/commands/render.py',
     'cli/commands/shape_drive.py', 'cli/main.py', 'cli/plot.py', 'core/dynamics.py',
-    'core/params.py', 'graph/pipeline.py', 'ros/command.py', 'ros/conversions.py',
-    'ros/nodes/camera.py', 'ros/nodes/player.py', 'ros/nodes/recorder.py',
-    'ros/nodes/simulator.py', 'ros/nodes/video_source.py', 'ros/nodes/vision.py', 'ros/params.py',
-    'ros/runtime.py', 'ros/tf.py', 'vision/egomotion.py', 'vision/footage.py', 'vision/frames.py',
-    'vision/scene.py', 'vision/tracker.py', 'vision/video.py',
+    'graph/pipeline.py', 'ros/command.py', 'ros/conversions.py', 'ros/nodes/camera.py',
+    'ros/nodes/player.py', 'ros/nodes/recorder.py', 'ros/nodes/simulator.py',
+    'ros/nodes/video_source.py', 'ros/nodes/vision.py', 'ros/params.py', 'ros/runtime.py',
+    'ros/tf.py', 'vision/egomotion.py', 'vision/footage.py', 'vision/frames.py', 'vision/scene.py',
+    'vision/tracker.py', 'vision/video.py',
 }
 
 
