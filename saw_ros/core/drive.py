@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Sequence
+from typing import cast, Sequence, Union
 
 import numpy as np
 
@@ -35,7 +35,8 @@ FREQUENCY_LIMIT = float(next(spec_entries(ConditionParams, ['frequency']))[2]['h
 class PhaseProfile:
     """V(phi) of S scenarios: mean voltages (S,), relative Fourier coefficients (S, 2K)."""
 
-    def __init__(self, mean, harmonics: Sequence[int], coefficients,
+    def __init__(self, mean: Union[float, Sequence[float], np.ndarray], harmonics: Sequence[int],
+                 coefficients: Union[Sequence[Sequence[float]], np.ndarray],
                  v_max: float = VOLTAGE_LIMIT):
         self.mean = np.atleast_1d(np.asarray(mean, float))
         self.harmonics = np.asarray(harmonics, float)
@@ -53,23 +54,23 @@ class PhaseProfile:
         self._angle = np.zeros((len(self.mean), k))
 
     @classmethod
-    def constant(cls, mean) -> 'PhaseProfile':
+    def constant(cls, mean: Union[float, Sequence[float], np.ndarray]) -> 'PhaseProfile':
         return cls(mean, (), np.zeros((np.size(mean), 0)))
 
     @property
     def peak(self) -> np.ndarray:
         """Return an upper bound of V over the turn, per scenario, V."""
         spread = np.abs(self.cos).sum(axis=1) + np.abs(self.sin).sum(axis=1)
-        return np.minimum(self.mean * (1.0 + spread), self.v_max)
+        return cast(np.ndarray, np.minimum(self.mean * (1.0 + spread), self.v_max))
 
-    def voltage(self, phase) -> np.ndarray:
+    def voltage(self, phase: Union[float, np.ndarray]) -> np.ndarray:
         """Return V at helix phase ``phase`` (S,), V, within [0, v_max]."""
         if not len(self.harmonics):
             return self.mean.copy()
         angle = np.multiply(np.asarray(phase, float)[:, None], self.harmonics, out=self._angle)
         shape = 1.0 + (np.cos(angle) * self.cos).sum(axis=1) + (np.sin(angle) * self.sin).sum(
             axis=1)
-        return np.clip(self.mean * shape, 0.0, self.v_max)
+        return cast(np.ndarray, np.clip(self.mean * shape, 0.0, self.v_max))
 
     def over_turn(self, samples: int = 360) -> np.ndarray:
         """Return V over one turn, (S, samples), for plots and the mean."""

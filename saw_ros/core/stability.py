@@ -43,12 +43,12 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Tuple
+from typing import Callable, Tuple
 
 import numpy as np
 
 from saw_ros.core.kinematics import cycle_phases, link_geometry, tip_rates
-from saw_ros.core.params import GRAVITY, ParameterError, RobotParams
+from saw_ros.core.params import GRAVITY, ParameterError, RobotParams, Scenario
 
 OMEGA_DT_MAX = 1.5          # the step's limit is 2; margin for damping and deeper contacts
 PHASES = 128                # samples of one wave cycle: crest depths within 0.01 mm
@@ -94,13 +94,13 @@ def phase_stiffness(robot: RobotParams, kn: float, exponent: float, kt: float,
     normal = exponent * kn * np.where(touching, depth, 1.0) ** (exponent - 1.0)
     per_tip = normal * rates.imag ** 2 + kt * rates.real ** 2
     squeezed = float(np.where(touching, per_tip, 0.0).sum(axis=1).max())
-    held = (robot.mass * GRAVITY / kn) ** (1.0 / exponent)
-    resting = (exponent * kn * held ** (exponent - 1.0) * float((rates.imag ** 2).max())
+    held = float((robot.mass * GRAVITY / kn) ** (1.0 / exponent))
+    resting = (exponent * kn * float(held ** (exponent - 1.0)) * float((rates.imag ** 2).max())
                + kt * float((rates.real ** 2).max()))
     return max(squeezed, resting)
 
 
-def _motor_margin(scenario, inertia: float) -> float:
+def _motor_margin(scenario: Scenario, inertia: float) -> float:
     """Return s / its allowed value for the motor's step (<= 1: stable with the margin)."""
     motor, surface, dt = scenario.motor, scenario.surface, scenario.integration.dt
     stiffness = phase_stiffness(scenario.robot, surface.normal_stiffness,
@@ -115,7 +115,7 @@ def _motor_margin(scenario, inertia: float) -> float:
     return stiffness * dt * dt / mass / ((OMEGA_DT_MAX / 2.0) ** 2 * 2.0 * (1.0 + retained))
 
 
-def _largest(stable, value: float) -> float:
+def _largest(stable: Callable[[float], bool], value: float) -> float:
     """Return the largest x in (0, value] for which ``stable(x)`` (monotonic) holds."""
     low, high = 0.0, value
     for _ in range(60):
@@ -124,7 +124,7 @@ def _largest(stable, value: float) -> float:
     return low
 
 
-def check(scenario) -> None:
+def check(scenario: Scenario) -> None:
     """Raise ParameterError, with the reason and what would be allowed, if ``scenario`` rings."""
     robot, surface, dt = scenario.robot, scenario.surface, scenario.integration.dt
     kn, p, kt = surface.normal_stiffness, surface.hertz_exponent, surface.tangential_stiffness
@@ -146,7 +146,7 @@ def check(scenario) -> None:
         f'other values: {", or ".join(a for a in allowed if a)}')
 
 
-def _check_motor(scenario) -> None:
+def _check_motor(scenario: Scenario) -> None:
     """Raise ParameterError if the motor's step would ring against the contacts (docstring)."""
     motor, dt = scenario.motor, scenario.integration.dt
     if motor.voltage <= 0.0 or _motor_margin(scenario, motor.inertia) <= 1.0:

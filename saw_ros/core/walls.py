@@ -38,10 +38,12 @@ that it cannot cycle, from the last step's shape. The others load nothing and re
 """
 from __future__ import annotations
 
-from typing import Optional, Sequence
+from typing import Any, Callable, cast, Optional, Sequence, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from saw_ros.core.contact import ContactLaw, ContactState
 from saw_ros.core.params import Scenario
 
 # Newton steps per time step at most, from the last step's shape, until the deflections agree
@@ -54,15 +56,17 @@ CANDIDATE_MARGIN = 0.1
 MIN_MARGIN = 1e-4
 
 
-def _patch(r, beta, half):
+def _patch(r: ArrayLike, beta: Union[float, np.ndarray],
+           half: Union[float, np.ndarray]) -> np.ndarray:
     """Return the bracket of the patch load's deflection at distance r (module docstring)."""
     r = np.abs(r)
-    d = lambda u: np.exp(-beta * u) * np.cos(beta * u)  # noqa: E731
-    return np.where(r <= half, 2.0 - d(half + r) - d(np.abs(half - r)),
-                    d(np.abs(r - half)) - d(r + half))
+    d: Callable[[Any], Any] = lambda u: np.exp(-beta * u) * np.cos(beta * u)  # noqa: E731
+    return cast(np.ndarray, np.where(r <= half, 2.0 - d(half + r) - d(np.abs(half - r)),
+                                     d(np.abs(r - half)) - d(r + half)))
 
 
-def deflection(r, load: float, foundation: float, bending: float, width: float):
+def deflection(r: ArrayLike, load: float, foundation: float, bending: float,
+               width: float) -> np.ndarray:
     """
     Return how far (m) the wall gives at ``r`` (m) from the centre of a load over ``width``.
 
@@ -72,11 +76,12 @@ def deflection(r, load: float, foundation: float, bending: float, width: float):
     return load / (2.0 * foundation * width) * _patch(np.asarray(r, float), beta, width / 2.0)
 
 
-def point_deflection(r, load: float, foundation: float, bending: float):
+def point_deflection(r: ArrayLike, load: float, foundation: float, bending: float) -> np.ndarray:
     """Hetenyi's point load on an infinite beam on a Winkler foundation (m at distance r)."""
     beta = (foundation / (4.0 * bending)) ** 0.25
     u = beta * np.abs(np.asarray(r, float))
-    return load * beta / (2.0 * foundation) * np.exp(-u) * (np.cos(u) + np.sin(u))
+    return cast(np.ndarray,
+                load * beta / (2.0 * foundation) * np.exp(-u) * (np.cos(u) + np.sin(u)))
 
 
 class Walls:
@@ -129,8 +134,8 @@ class Walls:
         self.largest[:] = 0.0
         self._shape = np.zeros_like(self.forces)
 
-    def _by_surface(self, values):
-        """(S, P) -> (S, 2, n) view, bottom tips then top tips; scalars stay scalars."""
+    def _by_surface(self, values: Any) -> Any:
+        """Return (S, P) as an (S, 2, n) view, bottom tips then top tips; scalars stay scalars."""
         if np.ndim(values) == 0:
             return values
         return np.reshape(values, (len(self.beta), 2, self.n))
@@ -155,9 +160,10 @@ class Walls:
             half = np.broadcast_to(self._half, r.shape)[inside]
             g[inside] = _patch(r[inside], beta, half)
         g *= self._gain
-        return g
+        return cast(np.ndarray, g)
 
-    def solve(self, penetration: np.ndarray, x: np.ndarray, state, law) -> np.ndarray:
+    def solve(self, penetration: np.ndarray, x: np.ndarray, state: ContactState,
+              law: ContactLaw) -> np.ndarray:
         """
         Return the depth (S, P) the contact law sees: ``penetration`` less the walls' deflection.
 
@@ -182,8 +188,8 @@ class Walls:
             self.largest[:] = 0.0
             return penetration.copy()
         pick = np.argsort(-d, axis=-1)[..., :count]                 # (S, 2, K), deepest first
-        take = lambda a: a if np.ndim(a) == 0 else np.take_along_axis(  # noqa: E731
-            self._by_surface(a), pick, axis=-1)
+        take: Callable[[Any], Any] = lambda a: (  # noqa: E731
+            a if np.ndim(a) == 0 else np.take_along_axis(self._by_surface(a), pick, axis=-1))
         xk = np.take_along_axis(xs, pick, axis=-1)
         g = self.compliance(xk)                                      # (S, 2, K, K)
         dk = np.take_along_axis(d, pick, axis=-1)
@@ -240,7 +246,7 @@ class Walls:
         # contact law sees them free with or without the shape, which is computed when asked.
         depth = self._by_surface(penetration.copy())
         np.put_along_axis(depth, pick, dk - w, axis=-1)
-        return depth.reshape(penetration.shape)
+        return cast(np.ndarray, depth.reshape(penetration.shape))
 
     def shape(self, x_tips: np.ndarray, samples: np.ndarray) -> np.ndarray:
         """
@@ -260,7 +266,7 @@ class Walls:
 
 def finite_difference_deflection(loads: Sequence[float], at: Sequence[float], foundation: float,
                                  bending: float, width: float, length: float, step: float,
-                                 supports: str = 'free'):
+                                 supports: str = 'free') -> Tuple[np.ndarray, np.ndarray]:
     """
     Solve EI w'''' + k w = q on [-length/2, length/2] by central differences: (x, w), m.
 

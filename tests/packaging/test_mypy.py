@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 STRICT_LAYERS = ('core', 'interface')
 # Modules of the strict layers not annotated yet (they were being changed when the test came).
 NOT_YET_STRICT = {
-    'core/drive.py', 'core/dynamics.py', 'core/stability.py', 'core/walls.py',
+    'core/dynamics.py',
 }
 # Modules that do not pass mypy's default checks yet.
 NOT_YET_CHECKED = {
@@ -26,7 +26,7 @@ NOT_YET_CHECKED = {
     'analysis/figures/markers_view.py', 'analysis/figures/plots.py', 'analysis/figures/sweeps.py',
     'analysis/footage.py', 'analysis/shape_drive.py', 'analysis/speed_hold.py', 'bag/reader.py',
     'bag/reindex.py', 'bag/writer.py', 'bench/__init__.py', 'bench/drive.py', 'bench/loadgen.py',
-    'bench/simulator_node.py', 'cli/commands/bag.py', 'cli/commands/render.py',
+    'bench/simulator_node.py', 'bench/walls.py', 'cli/commands/bag.py', 'cli/commands/render.py',
     'cli/commands/shape_drive.py', 'cli/main.py', 'cli/plot.py', 'core/dynamics.py',
     'graph/pipeline.py', 'ros/command.py', 'ros/conversions.py', 'ros/nodes/camera.py',
     'ros/nodes/player.py', 'ros/nodes/recorder.py', 'ros/nodes/simulator.py',
