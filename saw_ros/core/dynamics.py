@@ -22,12 +22,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 import functools
 import math
-from typing import Callable, Optional, Sequence, Union
+from typing import Any, Callable, cast, Optional, Sequence, Tuple, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from saw_ros.core import stability
-from saw_ros.core.contact import contact_step, ContactLaw, ContactState
+from saw_ros.core.contact import contact_step, ContactLaw, ContactState, Param
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
 from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
 from saw_ros.core.motor import MotorLaw
@@ -149,7 +150,7 @@ class Simulator:
         cond = [s.conditions for s in scenarios]
         tips = self.table.count
 
-        def per_scenario(get):
+        def per_scenario(get: Callable[[Scenario], float]) -> Param:
             """
             Return a scalar where every scenario agrees, else one value per scenario.
 
@@ -162,7 +163,8 @@ class Simulator:
                 return float(values[0])
             return np.repeat(values[:, None], tips, axis=1)
 
-        surface = lambda name: per_scenario(lambda s: getattr(s.surface, name))  # noqa: E731
+        surface: Callable[[str], Param] = lambda name: per_scenario(  # noqa: E731
+            lambda s: getattr(s.surface, name))
         self.law = ContactLaw.from_values(
             kn=surface('normal_stiffness'), kt=surface('tangential_stiffness'),
             mu=surface('friction_coefficient'), exponent=surface('hertz_exponent'),
@@ -239,7 +241,7 @@ class Simulator:
         self._runaway = 5.0 * (ideal + self._constant_omega) + 1.0
 
     # -- the drive from outside (core.drive) ----------------------------------------------------
-    def command_voltage(self, voltage) -> None:
+    def command_voltage(self, voltage: Optional[ArrayLike]) -> None:
         """
         Drive the motor at ``voltage`` (V; scalar or (S,)) from the next step; None: motor.voltage.
 
@@ -264,7 +266,7 @@ class Simulator:
         self.motor.set_voltage(voltage)
         self._set_runaway()
 
-    def command_frequency(self, frequency) -> None:
+    def command_frequency(self, frequency: Optional[ArrayLike]) -> None:
         """Turn the helix at ``frequency`` (Hz) where no motor is modelled; None: the parameter."""
         if frequency is None:
             self.commanded_frequency = None
@@ -409,9 +411,10 @@ class Simulator:
             self._check_divergence()
 
     @property
-    def tip_positions(self):
+    def tip_positions(self) -> np.ndarray:
         """World (surface frame) tip positions of the last step, complex x + i y, (S, P)."""
-        return self._x + 1j * (self.penetration * self._side + self._level * self._side)
+        return cast(np.ndarray,
+                    self._x + 1j * (self.penetration * self._side + self._level * self._side))
 
     def _check_divergence(self) -> None:
         t = self.t
@@ -430,7 +433,7 @@ class Simulator:
                 f'({vx:.3g} m/s, {vy:.3g} m/s, {w:.3g} rad/s), beyond {MAX_SPEED:g} m/s or '
                 f'rad/s, far outside the model (check the resisting force and slope)')
         too_deep = self.depth - self._max_penetration[:, None]
-        i, tip = np.unravel_index(np.argmax(too_deep), too_deep.shape)
+        i, tip = (int(v) for v in np.unravel_index(np.argmax(too_deep), too_deep.shape))
         if too_deep[i, tip] > 0:
             n = self.table.count // 2
             surface = 'top' if tip >= n else 'bottom'
@@ -455,11 +458,12 @@ class Simulator:
         t = np.empty(n_rec)
         q = np.empty((n_rec, self.count, 6))
         shape = (n_rec, self.count, self.table.count)
-        fn = np.zeros(shape) if contacts else None
-        ft = np.zeros(shape) if contacts else None
+        # Any: None when not recorded, and the loop below indexes them only when they are not.
+        fn: Any = np.zeros(shape) if contacts else None
+        ft: Any = np.zeros(shape) if contacts else None
         omega = np.empty((n_rec, self.count))
-        torque = np.empty((n_rec, self.count)) if self.motor_on else None
-        current = np.empty((n_rec, self.count)) if self.motor_on else None
+        torque: Any = np.empty((n_rec, self.count)) if self.motor_on else None
+        current: Any = np.empty((n_rec, self.count)) if self.motor_on else None
         t[0], q[0], omega[0] = self.t, self.q.T, self.omega
         if self.motor_on:
             torque[0], current[0] = self.motor_torque, self.current
@@ -483,13 +487,14 @@ class Simulator:
         return Trajectory(t, q, self.scenarios, fn, ft, omega, torque, current)
 
 
-def _run_chunk(job):
+def _run_chunk(job: Tuple[Sequence[Scenario], float, int, bool]) -> Trajectory:
     scenarios, duration, record_every, contacts = job
     return Simulator(scenarios).run(duration, record_every, None, contacts)
 
 
 def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[float] = None,
-             record_every: int = 1, progress=None, contacts: bool = False,
+             record_every: int = 1, progress: Optional[Callable[[int], None]] = None,
+             contacts: bool = False,
              workers: int = 1, pool: Optional[Pool] = None) -> Trajectory:
     """
     Run scenario(s) from the initial state for ``duration`` (default: integration.duration).
@@ -514,7 +519,7 @@ def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[f
         if progress is not None:
             progress(steps)
 
-    def cat(name):
+    def cat(name: str) -> Optional[np.ndarray]:
         got = [getattr(p, name) for p in done]
         if all(g is None for g in got):
             return None
@@ -522,5 +527,5 @@ def simulate(scenario: Union[Scenario, Sequence[Scenario]], duration: Optional[f
         rows = next(g for g in got if g is not None).shape[0]
         return np.concatenate([np.full((rows, len(p.scenarios)), np.nan) if g is None else g
                                for g, p in zip(got, done)], axis=1)
-    return Trajectory(done[0].t, cat('q'), scenarios, cat('normal'), cat('tangential'),
-                      cat('omega'), cat('torque'), cat('current'))
+    return Trajectory(done[0].t, cast(np.ndarray, cat('q')), scenarios, cat('normal'),
+                      cat('tangential'), cat('omega'), cat('torque'), cat('current'))

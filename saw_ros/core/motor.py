@@ -17,9 +17,10 @@ by R the step never divides by R, so R = 0 is the ideal stiff source, w' = V / k
 from __future__ import annotations
 
 import math
-from typing import Sequence, Tuple, Union
+from typing import Sequence, Tuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from saw_ros.core.params import MotorParams
 
@@ -47,7 +48,7 @@ class MotorLaw:
         self._has_r = self.resistance > 0.0
         self._safe_r = np.where(self._has_r, self.resistance, 1.0)
 
-    def set_voltage(self, voltage: Union[float, np.ndarray]) -> None:
+    def set_voltage(self, voltage: ArrayLike) -> None:
         """Drive the motors at ``voltage`` (V, scalar or (S,)) from the next step on."""
         self.voltage[:] = voltage
         # The same expression as __init__'s, so a command equal to motor.voltage changes nothing.
