@@ -58,9 +58,9 @@ def _simulate_group(job) -> np.ndarray:
     out = np.empty(len(scenarios))
     omega = getattr(tr, 'omega', None)
     for i, (s, target) in enumerate(zip(scenarios, targets)):
-        driven = omega is not None and s.motor.voltage > 0.0
+        driven = omega[:, i] if omega is not None and s.motor.voltage > 0.0 else None
         try:
-            out[i] = _outcome(target, s, tr.t, tr.q[:, i], omega[:, i] if driven else None)
+            out[i] = _outcome(target, s, tr.t, tr.q[:, i], driven)
         except ValueError:
             out[i] = float('nan')
     return out

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import json
 from pathlib import Path
 import time
-from typing import Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -79,7 +79,7 @@ def claims_summary(values: Dict[str, float], trained: Sequence[str], base: Scena
     """Every claim of the fidelity report with the defaults and with ``values``: held counts."""
     from saw_ros.analysis.figures import claims as claims_mod
     from saw_ros.analysis.figures import sweeps
-    out = {'trained': sorted(trained), 'grids': 'quick' if quick else 'full'}
+    out: Dict[str, Any] = {'trained': sorted(trained), 'grids': 'quick' if quick else 'full'}
     for key, scenario in (('defaults', base), ('calibrated', base.with_values(values))):
         found = claims_mod.evaluate(sweeps.compute(sweeps.FIGURES, quick=quick, pool=pool,
                                                    base=scenario))

@@ -11,7 +11,7 @@ import csv
 from dataclasses import dataclass
 import math
 from pathlib import Path
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Optional
 
 from saw_ros.interface.config import config_path
 
@@ -39,7 +39,7 @@ class Target:
     source: str = ''
 
     def condition(self) -> Dict[str, float]:
-        values = {'conditions.slope': math.radians(self.slope_deg)}
+        values: Dict[str, Any] = {'conditions.slope': math.radians(self.slope_deg)}
         if self.voltage is not None:
             values['motor.voltage'] = self.voltage
         else:
@@ -130,9 +130,12 @@ def load_targets(path) -> List[Target]:
         else:
             speed = _number(row.get('v_measured'), where, 'v_measured')
         ar = _number(row.get('advance_ratio') or row.get('ar_measured'), where, 'advance_ratio')
-        if speed is None and ar is None:
+        if speed is not None:
+            quantity, measured = 'speed', speed
+        elif ar is not None:
+            quantity, measured = 'ar', ar
+        else:
             raise CalibrationError(f'{where}: no measured speed or AR')
-        quantity, measured = ('speed', speed) if speed is not None else ('ar', ar)
         if not measured > 0:
             raise CalibrationError(f'{where}: the measured {quantity} must be > 0 (a robot that '
                                    f'did not advance cannot be fitted by relative error)')

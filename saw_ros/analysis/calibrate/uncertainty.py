@@ -9,7 +9,7 @@ flat, which pairs trade off against each other.
 from __future__ import annotations
 
 import math
-from typing import Dict, List, Tuple
+from typing import Any, Dict, List, Tuple
 
 import numpy as np
 
@@ -28,7 +28,7 @@ CORRELATED = 0.9
 
 
 def sensitivity(model: Model, params: List[Parameter], values: Dict[str, float]
-                ) -> Tuple[np.ndarray, np.ndarray, Dict[str, float]]:
+                ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     Return (S, centre outcomes, default outcomes of the base) from one batch.
 
@@ -72,7 +72,8 @@ def identifiability(S: np.ndarray, params: List[Parameter], residual_rms: float)
     _, s, vt = np.linalg.svd(S, full_matrices=True)
     s = np.concatenate([s, np.zeros(len(names) - len(s))])
     tiny = 1e-9 + 1e-6 * (s.max() if len(s) else 0.0)
-    flat, std = [], np.zeros(len(names))
+    flat: List[Dict[str, Any]] = []
+    std = np.zeros(len(names))
     for k in range(len(names)):
         extent = float('inf') if s[k] <= tiny else sigma / s[k]   # 1-sigma relative move
         if extent > IDENTIFIED_REL_STD:
