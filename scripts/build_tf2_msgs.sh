@@ -32,7 +32,11 @@ if ! { PATH="$VENV/bin:$PATH" AMENT_PREFIX_PATH="$VENV" cmake -S "$SRC" -B "$BUI
   # else quote the first error (a compiler's, cmake's).
   why="$(tr -s '\n ' '  ' < "$BUILD.log" | grep -m1 -oE 'provided by "[^"]+"' | head -n1 \
          | sed 's/provided by /package not found: /' || true)"
-  [ -n "$why" ] || why="$(grep -m1 -E 'error|Error' "$BUILD.log" || tail -n1 "$BUILD.log")"
+  [ -n "$why" ] || why="$(grep -m1 -E ' error: ' "$BUILD.log" || true)"
+  # CMake's own message is on the lines after its 'CMake Error at <file>:<line>' header.
+  [ -n "$why" ] || why="$(awk '/CMake Error/ {e = 1; next} e && NF {sub(/^ +/, ""); print; exit}' \
+                            "$BUILD.log")"
+  [ -n "$why" ] || why="$(tail -n1 "$BUILD.log")"
   echo "[bootstrap] error: building tf2_msgs failed: ${why:0:200} (whole log: $BUILD.log)" >&2
   exit 1
 fi

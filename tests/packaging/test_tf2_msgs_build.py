@@ -36,10 +36,14 @@ def test_a_failed_build_says_why_in_one_line(tmp_path):
     """A venv without the generators: cmake fails, and the line quotes its first error."""
     venv = tmp_path / 'venv'
     (venv / 'bin').mkdir(parents=True)
-    if not (shutil.which('cmake') and shutil.which('c++')):
+    system = '/usr/bin:/bin'
+    if not (shutil.which('cmake', path=system) and shutil.which('c++', path=system)):
         pytest.skip('needs cmake and a C++ compiler')
+    # Only the system's tools on PATH: CMake also searches the prefixes above PATH's entries,
+    # where a sourced ROS environment or venv would provide ament_cmake.
+    env = {'PATH': system, 'HOME': os.environ.get('HOME', '/tmp')}
     out = subprocess.run(['bash', str(SCRIPT), str(venv)], capture_output=True, text=True,
-                         timeout=120, env={**os.environ, 'CMAKE_PREFIX_PATH': ''})
+                         timeout=120, env=env)
     assert out.returncode == 1
     lines = out.stderr.splitlines()
     assert lines[0].startswith('[bootstrap] building tf2_msgs/TFMessage')
