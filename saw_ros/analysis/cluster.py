@@ -205,9 +205,9 @@ def _connect(distributed, address: str, timeout: float):
                         f'({type(exc).__name__}: {_one_line(exc)[:200]})')
     try:
         return distributed.Client(address, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+    except (OSError, TimeoutError, ValueError) as refused:
         raise PoolError(f'cannot reach the Dask scheduler at {address} within {timeout:g} s '
-                        f'({_one_line(exc)})') from None
+                        f'({_one_line(refused)})') from None
 
 
 def _one_line(exc: BaseException) -> str:

@@ -131,7 +131,7 @@ def run_waves(points: Sequence[Point], grid: Grid,
     ``progress(n)`` counts scenario-steps (per batch when a pool runs them).
     """
     parts = batches(list(points), pool.workers if pool is not None else 1)
-    if len(parts) == 1:
+    if pool is None or len(parts) == 1:
         return run_wave_batch(points, grid, progress, base)
     steps = int(round(grid.duration / Scenario().integration.dt))
     out: Dict[Point, float] = {}
