@@ -102,11 +102,15 @@ ACQUIRE_FRAMES = 6        # ... a moving pair must have been seen together this 
 MIN_MOTION = 4.0          # px along the marker line to count as moving
 RIGID_PX = 1.5            # ... and keep its spacing within this (plus 1 %) meanwhile
 MOTION_ANGLE = math.radians(25.0)   # ... moving along its own line within this
-PARTIAL_AREA = 0.85       # tracking: a marker below this fraction of its size is partly hidden
-# ... or less round than it was by this much (a full disc: 0.92-1; with noise, blur, lens and
+# Tracking: a marker whose area falls below this fraction of its own (or by 6 times its usual
+# scatter, for small markers whose area and roundness jump from frame to frame) is partly hidden
+PARTIAL_AREA = 0.85
+# ... or less round than it was by this much (a 14 px disc: 0.92-1; with noise, blur, lens and
 # JPEG 70, down by 0.11 at worst; cut by an edge so that its centroid moves 0.6 px: 0.74-0.8
-# instead of 0.96)
+# instead of 0.96; a 7 px disc through mp4: 0.70-0.99)
 PARTIAL_ROUND = 0.13
+SCATTER = 6.0
+SCATTER_FRAMES = 10       # measurements of a marker before it can be judged partly hidden
 ROUND_MIN = 0.6           # acquisition: least roundness (smaller / larger second moment)
 DIRECTION_PX = 40.0       # travel (px) before the track's direction is taken from the motion
 SLOPE_WARN = math.radians(2.0)     # a given slope this far from the motion is warned about
@@ -166,7 +170,7 @@ class TrackerConfig:
                                    None, low_open=True)
     colour_min: float = spec(0.25, '', 'acquisition: least colour (B - G) / (R - G) of a marker '
                                        '(red and shadowed red 0-0.2, crimson 0.2, pinks 0.3-0.8, '
-                                       'magenta 1)')
+                                       'magenta 1)', 0.0, None)
     com_offset_x: float = spec(0.0, 'm', 'COM minus marker midpoint along the back->front line')
     com_offset_y: float = spec(0.0, 'm', 'COM minus marker midpoint normal to that line')
     marker_line_angle: float = spec(0.0, 'rad', 'angle of the back->front line in the body frame')
@@ -446,6 +450,9 @@ class Tracker:
         self._area: Dict[str, Optional[float]] = {'front': None, 'back': None}
         self._colour: Dict[str, Optional[float]] = {'front': None, 'back': None}
         self._round: Dict[str, Optional[float]] = {'front': None, 'back': None}
+        # mean absolute deviations of area and roundness from the learned values, and the
+        # number of measurements they come from
+        self._scatter: Dict[str, List[float]] = {'front': [0.0, 0.0, 0], 'back': [0.0, 0.0, 0]}
         self._chains: List[Tuple[complex, Deque[complex]]] = []     # acquisition: motion
         self._confirmed = False         # the tracked pair has been seen moving
         self._locked_at: Optional[Tuple[complex, complex]] = None
@@ -796,13 +803,20 @@ class Tracker:
             if rival or (area is not None and cands[chosen].area > MERGED * area):
                 found[name] = None
                 ambiguous = True
-            elif area is not None and (cands[chosen].area < PARTIAL_AREA * area or
-                                       cands[chosen].roundness <
-                                       self._round[name] - PARTIAL_ROUND):
+            elif area is not None and self._partial(name, cands[chosen]):
                 # Partly hidden: the visible part's centroid is not the marker's centre.
                 found[name] = None
                 partial.append(name)
         return found, ambiguous, partial
+
+    def _partial(self, name: str, c: Candidate) -> bool:
+        """Whether a marker's blob is smaller or less round than it usually is: partly hidden."""
+        area, roundness = self._area[name], self._round[name]
+        d_area, d_round, n = self._scatter[name]
+        if n < SCATTER_FRAMES:
+            return False            # (too few measurements to know what is usual)
+        return c.area < area - max((1.0 - PARTIAL_AREA) * area, SCATTER * d_area) or \
+            c.roundness < roundness - max(PARTIAL_ROUND, SCATTER * d_round)
 
     # -- per frame -----------------------------------------------------------------------------
     def _camera_motion(self, image: np.ndarray, small: np.ndarray) -> np.ndarray:
@@ -851,6 +865,12 @@ class Tracker:
             if cand is None:
                 continue
             self._tracks[name].update(cand.q, t)
+            if self._area[name] is not None:
+                scatter = self._scatter[name]
+                scatter[2] += 1
+                w = max(LEARN, 1.0 / scatter[2])      # a plain mean over the first ten
+                scatter[0] += w * (abs(cand.area - self._area[name]) - scatter[0])
+                scatter[1] += w * (abs(cand.roundness - self._round[name]) - scatter[1])
             self._area[name] = _learn(self._area[name], cand.area)
             self._colour[name] = _learn(self._colour[name], cand.colour)
             self._round[name] = _learn(self._round[name], cand.roundness)

@@ -17,7 +17,9 @@ in frame ``surface`` (docs/vision.md):
 - /saw/tracking/steady_speed    geometry_msgs/TwistStamped: steady-state mean speed (linear.x)
   over the trailing ``steady_window``, once that window is filled;
 - /saw/tracking/status          diagnostic_msgs/DiagnosticArray: every frame, the frame's status
-  (ok / front lost / back lost / both lost / ambiguous) and running counts;
+  (ok / front lost / back lost / both lost / ambiguous / partial) and running counts, the slope
+  used, how far the camera moved, and the tracker's warnings (level WARN on an ok frame when
+  there are any: a slope the markers' motion disagrees with, a zoom...) and notes;
 - /saw/tracking/markers         visualization_msgs/MarkerArray: every frame, the measured marker
   centres and the tracked pose, drawn over the simulator's /saw/markers (saw_ros.ros.markers).
 
@@ -27,6 +29,7 @@ Pose and twists are published only for 'ok' frames: nothing is made up. The math
 from __future__ import annotations
 
 from collections import deque
+import math
 import struct
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -59,7 +62,7 @@ PENDING = 30            # images kept while waiting for the first CameraInfo
 CAMERA_FIELDS = ('slope', 'center_x', 'center_y', 'mirror')
 CONFIG_FIELDS = ('hue_min', 'hue_max', 'sat_min', 'val_min', 'pink_min', 'min_area', 'downscale',
                  'min_contrast', 'merge_distance', 'gate', 'reacquire_after', 'spacing_tolerance',
-                 'max_pitch', 'colour_tolerance', 'com_offset_x', 'com_offset_y',
+                 'max_pitch', 'colour_tolerance', 'colour_min', 'com_offset_x', 'com_offset_y',
                  'marker_line_angle', 'smooth_window', 'steady_window', 'steady_fill',
                  'max_step_gap')
 # TrackerConfig's optional fields, as ROS parameters have no 'unset': 0 (all zeros) = not given.
@@ -77,6 +80,10 @@ PARAMETERS = (
     ('plane_distance', 1.0, spec_meta('m', 'camera to the plane of motion (with CameraInfo: '
                                            'px/m = fx / this)', 0.0, None, low_open=True)),
     *spec_entries(CameraModel, CAMERA_FIELDS),
+    ('slope_from_motion', False,
+     spec_meta('', "true: the track's direction is the markers' own motion (footage whose slope "
+                   'is not known; slope is then only a first guess); false: slope is the '
+                   "track's, and a motion that disagrees is warned about on the status")),
     *spec_entries(TrackerConfig, CONFIG_FIELDS),
     ('roi', [0, 0, 0, 0], spec_meta('px', 'region of interest x0, y0, x1, y1 (x1, y1 excluded): '
                                           'markers are looked for only there; all 0 = the '
@@ -218,10 +225,12 @@ class VisionNode(Node):
         h, w = image.shape[:2]
         if self.tracker is None or (self.tracker.camera.width, self.tracker.camera.height) != (
                 w, h) or self.tracker.encoding != encoding:
-            self.tracker = Tracker(self._camera(w, h), self.config, encoding)
+            self.tracker = Tracker(self._camera(w, h), self.config, encoding,
+                                   not self.p['slope_from_motion'])
         elif self.tracker.last_time is not None and t_ns / NS_PER_S <= self.tracker.last_time:
             self.get_logger().warning('image stamps went backwards: tracker restarted')
-            self.tracker = Tracker(self.tracker.camera, self.config, encoding)
+            self.tracker = Tracker(self.tracker.camera, self.config, encoding,
+                                   not self.p['slope_from_motion'])
         res = self.tracker.update(image, t_ns / NS_PER_S)
         self.results += 1
         self._publish(res, t_ns)
@@ -266,12 +275,22 @@ class VisionNode(Node):
                     DiagnosticStatus.ERROR if res.status is TrackStatus.BOTH_LOST else
                     DiagnosticStatus.WARN)
         st.message = res.status.value
+        # What makes the numbers doubtful (a slope the motion disagrees with, a zoom, ...):
+        # an ok frame with a warning is WARN, so that no wrong speed looks trusted.
+        warnings = self.tracker.warnings
+        if warnings and st.level == DiagnosticStatus.OK:
+            st.level = DiagnosticStatus.WARN
+        slope = self.tracker.slope_used
         values = {'status': res.status, 'candidates': res.candidates, 'frames': c.frames,
                   'ok_frames': c.ok, 'front_lost_frames': c.front_lost,
                   'back_lost_frames': c.back_lost, 'ambiguous_frames': c.ambiguous,
+                  'partial_frames': c.partial,
                   'consecutive_not_ok': c.consecutive_not_ok,
                   'longest_not_ok': c.longest_not_ok,
-                  'steady_speed': '' if res.steady_speed is None else f'{res.steady_speed:.6f}'}
+                  'steady_speed': '' if res.steady_speed is None else f'{res.steady_speed:.6f}',
+                  'slope_deg': '' if slope is None else f'{math.degrees(slope):.3f}',
+                  'camera_shift_px': f'{self.tracker.motion.largest_shift:.1f}',
+                  'warnings': ' | '.join(warnings), 'notes': ' | '.join(self.tracker.notes)}
         st.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         msg = DiagnosticArray()
         conv.time_msg(t_ns, msg.header.stamp)
