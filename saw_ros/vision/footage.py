@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.tracker import Tracker, TrackerConfig
+from saw_ros.vision.tracker import FrameResult, Tracker, TrackerConfig
 
 MARKER_BGR = (175, 70, 250)        # RGB (250, 70, 175): a pink that is not the renderer's
 SHIFT = 4                          # fixed-point bits for sub-pixel drawing
@@ -281,6 +281,7 @@ class ShotResult:
     warnings: List[str]
     notes: List[str]
     tracker: Tracker
+    results: List[FrameResult]
 
     @property
     def ok_frames_pct(self) -> float:
@@ -323,4 +324,4 @@ def track_shot(shot: Shot, slope_known: bool = False, config: TrackerConfig = Tr
     error = math.inf if speed is None else \
         100.0 * abs(speed - shot.mean_speed()) / shot.mean_speed()
     return ShotResult(speed, error, visible, ok_visible, wrong, tracker.warnings, tracker.notes,
-                      tracker)
+                      tracker, results)
