@@ -23,40 +23,55 @@ Per frame:
    magenta; unchanged by brightness and by blending with grey). Candidates closer than
    ``merge_distance`` are merged; blobs that the coarse step joined but that are apart at full
    resolution are measured apart. Centres are then undistorted (camera's lens model).
-3. Acquisition (no marker tracked yet, or both lost for ``reacquire_after`` frames): every pair
-   of candidates is tested as (front, back): the back->front line within ``max_pitch`` of the
-   track's direction (the surfaces' slope, plus ``marker_line_angle``); the two blobs of similar
-   size (area ratio <= 2.5) and colour (within ``colour_tolerance``); their distance within
-   ``spacing_tolerance`` of ``marker_spacing`` (m, times the scale) when it is given, or of the
-   spacing measured while tracking before; each blob's area near that of a
-   ``marker_diameter`` disc when given. The pair that passes with the lowest cost (sum of the
-   squared deviations in units of their tolerances) is taken when no other passing pair comes
-   within 0.25 of it; otherwise motion decides: each candidate is followed from frame to frame
-   (nearest of the previous frame's within ``gate``) and the pair whose two blobs have moved by
-   the same distance along their line (a rigid body: pitching does not change it), at least
-   4 px, since both were first seen, is taken if it is the only such pair. Otherwise the frame
-   is ``ambiguous`` and acquisition goes on with the next. So an orange-red object, a magenta
-   sticker, a third pink marker on the wall ahead or behind, do not stop the start.
-4. Tracking: front and back keep their identity by prediction (last position + pixel velocity
+3. Camera motion (``egomotion.CameraMotion``, on the shrunk image detection made): the
+   background's corners, the robot masked out, give the similarity that takes each picture back
+   to the first one (the scene's frame); marker centres are measured in that frame, so a
+   handheld camera's drift and jitter do not add to the robot's motion. A fixed camera is left
+   exactly as it is (no correction until the picture has moved by 0.5 px three frames in a
+   row); a scale (zoom) or roll that changes during the clip is a warning.
+4. Acquisition (no marker tracked yet, or both lost for ``reacquire_after`` frames, which also
+   forgets what was learned of the pair: spacing, vector, size, colour, unless given): a marker
+   is pink in absolute terms (colour (B - G) / (R - G) >= ``colour_min``: red and shadowed red
+   are 0-0.2), round, of a ``marker_diameter`` disc's area when that is given. A pair is two of
+   them of similar size (area ratio <= 2.5) and colour (within ``colour_tolerance``), their
+   distance within ``spacing_tolerance`` of ``marker_spacing`` (times the scale) when given.
+   First choice: a pair that has moved together as one rigid body along its own line for
+   ACQUIRE_FRAMES frames or more (each candidate followed from frame to frame, nearest within
+   ``gate``; spacing constant within 1.5 px + 1 %, at least 4 px travelled, within 25 deg of
+   the line): the robot. While no candidate moves, and only with the slope known and before
+   anything was seen moving, the old rule: the cheapest pair on the track's line (within
+   ``max_pitch``) when no other comes within 0.25 of its cost. Such a static pair is dropped
+   (with what was learned of it) as soon as another pair moves as the robot does, and its
+   frames are then not the robot's (``switched_at``); while it is held, a warning says so.
+   Otherwise the frame is ``ambiguous`` (or 'both lost' with fewer than two marker-like blobs).
+5. Tracking: front and back keep their identity by prediction (last position + pixel velocity
    x elapsed time; a marker lost meanwhile is predicted from the other through the last
    back->front vector, the robot being rigid) and the cheapest assignment of candidates within
    ``gate`` pixels whose colour matches the marker's; a pair must keep the marker spacing
    measured so far (within 3 px or 2 %). A blob much larger than the marker (1.5x: something
-   pink touching it) is not measured; a much smaller one (0.5x: mostly hidden) is not the marker.
-   A marker for which another assignment fits within ``merge_distance`` / 2 px of the best is
-   ambiguous: it is not measured. A third pink thing passing near the robot is thus ignored
-   unless it is where the marker should be.
-5. Metric: ideal pixels -> surface frame. Robot position = midpoint of the markers plus
+   pink touching it) is not measured; a much smaller one (0.5x: mostly hidden) is not the marker;
+   one smaller by 15 % or less round by 0.13 than it usually is (or by 6 times its usual
+   scatter, for small markers) is partly hidden: its centroid is not its centre, the frame is
+   'partial'. A marker for which another assignment fits within ``merge_distance`` / 2 px of
+   the best is ambiguous: it is not measured. A third pink thing passing near the robot is thus
+   ignored unless it is where the marker should be.
+6. Metric: ideal pixels -> surface frame. Robot position = midpoint of the markers plus
    ``com_offset`` (body frame: along the marker line, and normal to it), 0 when the markers are
    symmetric about the COM (as the renderer puts them); pitch = direction of the back->front line
    in the surface frame (the slope is removed by the camera model) minus ``marker_line_angle``.
-6. Speeds (surface frame, m/s): instantaneous = difference to the previous measured frame;
+   Without the slope (``slope_known`` False), the track's direction is the markers' own motion
+   (least-squares over the kept history, once they travelled 40 px; ``slope_used``); with it, a
+   motion more than 2 deg off the slope is a warning (speeds along it read cos(angle) low).
+7. Speeds (surface frame, m/s): instantaneous = difference to the previous measured frame;
    smoothed = least-squares slope over the trailing ``smooth_window`` s; steady-state mean =
    least-squares slope of position over the trailing ``steady_window`` s, reported once the
-   measured samples span at least ``steady_fill`` of it.
+   measured samples span at least ``steady_fill`` of it (and the direction is known).
 
-A frame gets status 'ok', 'front lost', 'back lost', 'both lost' or 'ambiguous'. Position, pitch
-and speeds exist only for 'ok' frames: nothing is made up on the others.
+``Tracker.warnings`` says what makes the numbers doubtful, ``Tracker.notes`` what was done
+(camera motion taken out, the slope from the motion, a static pair dropped).
+
+A frame gets status 'ok', 'front lost', 'back lost', 'both lost', 'ambiguous' or 'partial'.
+Position, pitch and speeds exist only for 'ok' frames: nothing is made up on the others.
 
 The default colour window, hue 140..172 (OpenCV 0-179), S >= 70, V >= 60, is pink, not red: it
 takes magenta (150), neon and shocking pink (152-158), hot and deep pink (163-165, the renderer's
