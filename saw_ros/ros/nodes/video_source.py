@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import os
-from pathlib import Path
 import sys
 import time
 from typing import Iterator, Optional
@@ -43,10 +42,9 @@ from saw_ros.ros.params import declare_spec  # noqa: E402
 from saw_ros.ros.qos import CLOCK_QOS, image_publisher_qos  # noqa: E402
 from saw_ros.ros.runtime import NodeFailure, run_node, spin_node  # noqa: E402
 from saw_ros.vision import one_opencv_thread  # noqa: E402
-from saw_ros.vision.video import VideoError  # noqa: E402
+from saw_ros.vision.video import frame_files, VideoError  # noqa: E402
 from sensor_msgs.msg import CameraInfo, Image  # noqa: E402
 
-IMAGE_EXTENSIONS = ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.tiff', '.ppm', '.pgm')
 TICK = 0.002            # s, wall-clock timer period of the publishing loop
 INFO_GRACE = 2.0        # s to wait for camera-info subscribers once the image ones matched
 
@@ -87,11 +85,7 @@ class FrameSource:
         self._cap = None
         self._files = None
         if os.path.isdir(self.path):
-            self._files = sorted(p for p in Path(self.path).iterdir()
-                                 if p.suffix.lower() in IMAGE_EXTENSIONS)
-            if not self._files:
-                raise VideoError(f'no frame images ({", ".join(IMAGE_EXTENSIONS)}) in folder '
-                                 f'{self.path}')
+            self._files = frame_files(self.path)     # (the same as saw-ros track's)
             if not fps > 0:
                 raise VideoError(f'a folder of frames has no frame rate: give fps ({self.path})')
             self.fps = float(fps)
