@@ -46,9 +46,16 @@ class ParameterClient:
 
     def _call(self, client, request):
         assert wait_for(client.service_is_ready, 30, spin=self.spin)
-        future = client.call_async(request)
-        assert wait_for(future.done, 30, spin=self.spin)
-        return future.result()
+        # service_is_ready says the request can reach the server, not that its reply can reach
+        # us (the reply's writer may match our reader later; a reply sent before is lost, a
+        # known DDS race of ROS 2 services). Asking again is what a client does then; the
+        # requests here are idempotent (get, or a set the node refuses).
+        for _ in range(6):
+            future = client.call_async(request)
+            if wait_for(future.done, 5, spin=self.spin):
+                return future.result()
+            client.remove_pending_request(future)
+        raise AssertionError(f'no reply from {client.srv_name} in 6 tries of 5 s')
 
     def spin(self, t):
         self.executor.spin_once(timeout_sec=t)
