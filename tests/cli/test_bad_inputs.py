@@ -184,40 +184,96 @@ def _saw_ros():
     return [str(exe)] if exe.exists() else [sys.executable, '-m', 'saw_ros.cli.main']
 
 
-@pytest.fixture
-def folder(tmp_path):
-    (tmp_path / 'text.txt').write_text('hello\n')
-    (tmp_path / 'text.mp4').write_text('not a video\n')
-    (tmp_path / 'bad.yaml').write_text('simulator: [1,\n')
-    (tmp_path / 'list.yaml').write_text('- 1\n- 2\n')
-    (tmp_path / 'typo.yaml').write_text('simulator:\n  ros__parameters:\n    '
-                                        'surface.stifness: 3\n')
-    (tmp_path / 'dir').mkdir()
-    (tmp_path / 'dir.csv').mkdir()
+def make_folder(path: Path) -> Path:
+    """Fill ``path`` with the inputs the table's cases name ({d})."""
+    path.mkdir(parents=True, exist_ok=True)
+    (path / 'text.txt').write_text('hello\n')
+    (path / 'text.mp4').write_text('not a video\n')
+    (path / 'bad.yaml').write_text('simulator: [1,\n')
+    (path / 'list.yaml').write_text('- 1\n- 2\n')
+    (path / 'typo.yaml').write_text('simulator:\n  ros__parameters:\n    '
+                                    'surface.stifness: 3\n')
+    (path / 'dir').mkdir()
+    (path / 'dir.csv').mkdir()
     header = 'video,slope_deg,voltage_V,px_per_m\n'
-    (tmp_path / 'text_video.csv').write_text(header + 'text.mp4,0,6,600\n')
-    (tmp_path / 'no_video.csv').write_text(header + 'none.mp4,0,6,600\n')
-    shutil.copy(VIDEO, tmp_path / 'level.mp4')
-    (tmp_path / 'volts.csv').write_text(header + 'level.mp4,0,99,600\n')
-    (tmp_path / 'no_scale.csv').write_text(header + 'level.mp4,0,6,\n')
-    return tmp_path
+    (path / 'text_video.csv').write_text(header + 'text.mp4,0,6,600\n')
+    (path / 'no_video.csv').write_text(header + 'none.mp4,0,6,600\n')
+    shutil.copy(VIDEO, path / 'level.mp4')
+    (path / 'volts.csv').write_text(header + 'level.mp4,0,99,600\n')
+    (path / 'no_scale.csv').write_text(header + 'level.mp4,0,6,\n')
+    return path
+
+
+MADE = {'text.txt', 'text.mp4', 'bad.yaml', 'list.yaml', 'typo.yaml', 'dir', 'dir.csv',
+        'text_video.csv', 'no_video.csv', 'level.mp4', 'volts.csv', 'no_scale.csv'}
+
+# One Python runs the whole table (a process start per case cost 140 s of the suite): each case
+# in a folder of its own, saw-ros's main() with the case's arguments, what it printed on
+# stderr and its exit code; an exception that escaped main() comes back as its traceback.
+WORKER = """
+import contextlib, io, json, os, sys, traceback
+from saw_ros.cli.main import main
+out = []
+for folder, args in json.load(sys.stdin):
+    os.chdir(folder)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = main(args)
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 1
+        except BaseException:
+            code = 'exception'
+            err.write(traceback.format_exc())
+    out.append({'code': code, 'err': err.getvalue(), 'files': sorted(os.listdir(folder))})
+print(json.dumps(out))
+"""
+
+
+@pytest.fixture(scope='module')
+def outcomes(tmp_path_factory):
+    """Run every case of the table in one Python; {command: (folder, outcome)}."""
+    import json
+    root = tmp_path_factory.mktemp('bad_inputs')
+    jobs, folders = [], []
+    for i, (command, _) in enumerate(CASES):
+        folder = make_folder(root / f'case_{i}')
+        folders.append(folder)
+        jobs.append([str(folder), [a.replace('{d}', str(folder)) for a in shlex.split(command)]])
+    done = subprocess.run([sys.executable, '-c', WORKER], input=json.dumps(jobs),
+                          capture_output=True, text=True, timeout=TIMEOUT_S * 3, cwd=root)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(done.stdout.strip().splitlines()[-1])
+    return {command: (folder, result)
+            for (command, _), folder, result in zip(CASES, folders, results)}
 
 
 @pytest.mark.parametrize('command, expected', CASES, ids=[c or '(none)' for c, _ in CASES])
-def test_bad_input_is_one_line_and_exit_code_2(folder, command, expected):
+def test_bad_input_is_one_line_and_exit_code_2(outcomes, command, expected):
+    folder, result = outcomes[command]
+    err = result['err']
+    assert 'Traceback' not in err, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert expected.replace('{d}', str(folder)) in err, err
+    assert result['code'] == 2, (result['code'], err)
+    assert err.startswith('saw-ros'), err
+    # Refused before anything was written: the folder holds only what the fixture made.
+    assert set(result['files']) == MADE
+
+
+# A few of them as a user types them, each its own `saw-ros` process.
+@pytest.mark.parametrize('command, expected', [
+    c for c in CASES if c[0] in ('', 'statics --slope-deg 100', 'bag info {d}/text.txt',
+                                 'campaign --videos {d}/text_video.csv')])
+def test_bad_input_from_the_command_line(tmp_path, command, expected):
+    folder = make_folder(tmp_path / 'case')
     args = [a.replace('{d}', str(folder)) for a in shlex.split(command)]
     done = subprocess.run(_saw_ros() + args, cwd=folder, capture_output=True, text=True,
                           timeout=TIMEOUT_S, stdin=subprocess.DEVNULL)
     err = done.stderr
-    assert 'Traceback' not in err, err
-    assert len(err.strip().splitlines()) == 1, err
-    assert expected.replace('{d}', str(folder)) in err, err
-    assert done.returncode == 2, (done.returncode, err)
-    assert err.startswith('saw-ros'), err
-    # Refused before anything was written: the folder holds only what the fixture made.
-    made = {'text.txt', 'text.mp4', 'bad.yaml', 'list.yaml', 'typo.yaml', 'dir', 'dir.csv',
-            'text_video.csv', 'no_video.csv', 'level.mp4', 'volts.csv', 'no_scale.csv'}
-    assert {p.name for p in folder.iterdir()} == made
+    assert 'Traceback' not in err and len(err.strip().splitlines()) == 1, err
+    assert expected.replace('{d}', str(folder)) in err and done.returncode == 2, err
+    assert {p.name for p in folder.iterdir()} == MADE
 
 
 def test_every_subcommand_has_bad_inputs_in_the_table():
