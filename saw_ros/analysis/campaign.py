@@ -172,12 +172,13 @@ def summarise(results: List[ConditionResult]) -> Dict[str, object]:
     fits_slope = {}
     for v in sorted({r.voltage for r in results}):
         rows = [r for r in results if r.voltage == v and math.isfinite(r.v_tracked)]
-        if len(rows) >= 2:
+        # A line needs two slopes: repeated runs of one condition (footage taken twice) have none.
+        if len({r.slope_deg for r in rows}) >= 2:
             fits_slope[v] = linear_fit([r.slope_deg for r in rows], [r.v_tracked for r in rows])
     fits_voltage = {}
     for s in sorted({r.slope_deg for r in results}):
         rows = [r for r in results if r.slope_deg == s and math.isfinite(r.v_tracked)]
-        if len(rows) >= 2:
+        if len({r.voltage for r in rows}) >= 2:
             fits_voltage[s] = linear_fit([r.voltage for r in rows], [r.v_tracked for r in rows])
     refs = [r.reference_error for r in results if math.isfinite(r.reference_error)]
     return {'mean_relative_error_by_voltage': by_voltage,

@@ -43,7 +43,7 @@ from saw_ros.core.metrics import run_frequency, run_turns
 from saw_ros.vision.camera import FPS
 
 MANIFEST_COLUMNS = ('video', 'slope_deg', 'voltage_V', 'frequency_hz', 'px_per_m',
-                    'marker_spacing_m', 'notes')
+                    'marker_spacing_m', 'fps', 'notes')
 TARGET_COLUMNS = ('video', 'slope_deg', 'voltage_V', 'frequency_hz', 'v_measured',
                   'ar_measured', 'window_s', 'v_theory', 'v_sim', 'ar_sim', 'relative_error',
                   'frames', 'frames_ok', 'px_per_m', 'scale_from', 'notes')
@@ -66,6 +66,7 @@ class FootageRun:
     px_per_m: Optional[float] = None
     marker_spacing: Optional[float] = None
     notes: str = ''
+    fps: float = 0.0           # frames per second: a folder of frames needs it; 0 = the file's
 
     def scenario(self, base: Scenario) -> Scenario:
         values = {'conditions.slope': math.radians(self.slope_deg)}
@@ -122,9 +123,12 @@ def _row(path: Path, line: int, row: Dict[str, str]) -> FootageRun:
         raise ManifestError(f'{where}: slope_deg must be given, in [-90, 90]')
     run = FootageRun(path.parent / row['video'], slope, number('voltage_V'),
                      number('frequency_hz'), number('px_per_m'), number('marker_spacing_m'),
-                     row.get('notes', ''))
-    if not run.video.is_file():
-        raise ManifestError(f'{where}: no such video file: {run.video}')
+                     row.get('notes', ''), number('fps') or 0.0)
+    if run.video.is_dir():
+        if not run.fps:
+            raise ManifestError(f'{where}: {run.video} is a folder of frames: give its fps')
+    elif not run.video.is_file():
+        raise ManifestError(f'{where}: no such video file or folder of frames: {run.video}')
     if (run.voltage is None) == (run.frequency is None):
         raise ManifestError(f'{where}: give one of voltage_V and frequency_hz')
     if run.px_per_m is None and run.marker_spacing is None:
@@ -178,12 +182,12 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
     if run.px_per_m is not None:
         scale, source = run.px_per_m, 'px_per_m'
     else:
-        found = measure_scale(run.video, camera_kw, config, run.marker_spacing)
+        found = measure_scale(run.video, camera_kw, config, run.marker_spacing, run.fps)
         if found is None:
             raise ManifestError(f'{run.video}: the marker spacing could not be measured (no '
                                 f'frame with both markers told apart): give px_per_m')
         scale, source = found[0], 'marker_spacing'
-    results, tracker = track_video(run.video, dict(camera_kw, scale=scale), config)
+    results, tracker = track_video(run.video, dict(camera_kw, scale=scale), config, run.fps)
     ok = [r for r in results if r.ok]
     speed, window = clip_speed([r.t for r in ok], [r.position.real for r in ok], frequency)
     return Measured(results, scale, source, speed, window, len(results), len(ok))

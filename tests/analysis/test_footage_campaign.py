@@ -61,3 +61,28 @@ def test_missing_video_is_a_user_error(tmp_path, capsys):
     manifest.write_text('video,slope_deg,voltage_V,px_per_m\nnothing.mp4,0,6,600\n')
     assert main(['campaign', '--videos', str(manifest), '--out', str(tmp_path / 'o')]) != 0
     assert 'nothing.mp4' in capsys.readouterr().err
+
+
+def test_a_folder_of_frames_is_footage_as_its_video_is(tmp_path, capsys):
+    """The same clip as frame images (manifest column fps) measures the same speed (issue 21)."""
+    import cv2
+    from saw_ros.vision.video import read_frames, video_info
+    clip = SAMPLES.parent / 'level_6V.mp4'
+    fps = video_info(clip)[0]
+    folder = tmp_path / 'level_frames'
+    folder.mkdir()
+    for k, _, frame in read_frames(clip):
+        cv2.imwrite(str(folder / f'frame_{k:04d}.png'), frame)
+    header = 'video,slope_deg,voltage_V,px_per_m,fps\n'
+    manifest = tmp_path / 'm.csv'
+    manifest.write_text(header + f'{clip},0,6,600,\nlevel_frames,0,6,600,{fps}\n')
+    out = tmp_path / 'out'
+    assert main(['campaign', '--videos', str(manifest), '--out', str(out), '--quiet']) == 0
+    with open(out / 'footage.csv', newline='') as f:
+        video, frames = list(csv.DictReader(f))
+    assert frames['frames'] == video['frames'] and frames['frames_ok'] == video['frames_ok']
+    assert float(frames['v_measured']) == pytest.approx(float(video['v_measured']), rel=1e-3)
+    # Without its frame rate a folder is refused, naming the row.
+    manifest.write_text(header + 'level_frames,0,6,600,\n')
+    with pytest.raises(ManifestError, match='row 2.*folder of frames.*fps'):
+        load_manifest(manifest)

@@ -111,6 +111,7 @@ CASES = [
     ('campaign --videos {d}/none.csv', '--videos {d}/none.csv: no such manifest'),
     ('campaign --videos {d}/text.txt', 'columns must be video, slope_deg'),
     ('campaign --videos ' + VIDEO, 'is not a text manifest'),
+    ('campaign --videos {d}/frames_no_fps.csv', 'dir is a folder of frames: give its fps'),
     ('campaign --videos {d}/text_video.csv', 'video {d}/text.mp4: not a video OpenCV can decode'),
     ('campaign --videos {d}/no_video.csv', 'no such video file'),
     ('campaign --videos {d}/volts.csv', 'motor.voltage = 99 is out of range'),
@@ -201,11 +202,13 @@ def make_folder(path: Path) -> Path:
     shutil.copy(VIDEO, path / 'level.mp4')
     (path / 'volts.csv').write_text(header + 'level.mp4,0,99,600\n')
     (path / 'no_scale.csv').write_text(header + 'level.mp4,0,6,\n')
+    (path / 'frames_no_fps.csv').write_text(header + 'dir,0,6,600\n')
     return path
 
 
 MADE = {'text.txt', 'text.mp4', 'bad.yaml', 'list.yaml', 'typo.yaml', 'dir', 'dir.csv',
-        'text_video.csv', 'no_video.csv', 'level.mp4', 'volts.csv', 'no_scale.csv'}
+        'text_video.csv', 'no_video.csv', 'level.mp4', 'volts.csv', 'no_scale.csv',
+        'frames_no_fps.csv'}
 
 # One Python runs the whole table (a process start per case cost 140 s of the suite): each case
 # in a folder of its own, saw-ros's main() with the case's arguments, what it printed on

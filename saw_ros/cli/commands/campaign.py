@@ -61,9 +61,10 @@ def add_arguments(p):
     p.add_argument('--out', type=Path, default=None,
                    help=f'output folder (default {DEFAULT_OUT}, with --videos {FOOTAGE_OUT})')
     p.add_argument('--videos', type=Path, default=None, metavar='MANIFEST.csv',
-                   help='recorded runs instead of the virtual camera: a CSV with columns video, '
-                   'slope_deg, voltage_V or frequency_hz, px_per_m or marker_spacing_m, notes '
-                   '(paths relative to it); --slopes/--voltages/--reference do not apply')
+                   help='recorded runs instead of the virtual camera: a CSV with columns video '
+                   '(a file, or a folder of frame images with its fps), slope_deg, voltage_V or '
+                   'frequency_hz, px_per_m or marker_spacing_m, fps, notes (paths relative to '
+                   'it); --slopes/--voltages/--reference do not apply')
     p.add_argument('--reference', type=Path, default=None,
                    help="CSV of measured speeds/ARs (default: the paper's stated points)")
     add_pool_arguments(p)
@@ -83,7 +84,11 @@ def run_videos(args):
     try:
         runs = load_manifest(args.videos)
         for r in runs:               # every video readable before the first is tracked
-            video_input(r.video, f'--videos {args.videos}: video')
+            if r.video.is_dir():     # a folder of frames: every image must decode
+                from saw_ros.vision.video import FrameFolder
+                FrameFolder(r.video, r.fps)
+            else:
+                video_input(r.video, f'--videos {args.videos}: video')
             try:
                 r.scenario(base)
             except ParameterError as exc:
