@@ -107,7 +107,8 @@ class _Spinner:
     def __init__(self, expected_s):
         from tqdm import tqdm
         self.start = time.monotonic()
-        self.bar = tqdm(total=round(expected_s, 1), unit='s', desc='running graph',
+        # disable=None: a bar on a terminal only, not a log of carriage returns in a file.
+        self.bar = tqdm(total=round(expected_s, 1), unit='s', desc='running graph', disable=None,
                         file=sys.stderr, leave=False,
                         bar_format='{desc}: {bar} {n:.0f}/{total:.0f} s wall')
 

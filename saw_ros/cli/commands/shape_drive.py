@@ -58,7 +58,7 @@ def run(args) -> int:
     bar = None
     if not args.quiet:
         from tqdm import tqdm
-        bar = tqdm(total=args.generations, unit='generation', desc=NAME)
+        bar = tqdm(total=args.generations, unit='generation', desc=NAME, disable=None)
 
     def progress(generation, best):
         if bar is not None:
