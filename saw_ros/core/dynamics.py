@@ -257,14 +257,18 @@ class Simulator:
         if not self.motor_on:
             raise ParameterError('no motor is modelled (motor.voltage = 0): command the helix '
                                  'frequency instead')
-        voltage = np.broadcast_to(np.asarray(voltage, float), (self.count,)).copy()
-        if not np.isfinite(voltage).all() or (voltage < 0.0).any() or (
-                voltage > VOLTAGE_LIMIT).any():
-            raise ParameterError(f'commanded voltage {voltage} is invalid: must be finite, in '
-                                 f'[0, {VOLTAGE_LIMIT:g}] V')
+        voltage = self._commanded(voltage, 'voltage', VOLTAGE_LIMIT, 'V')
         self.commanded_voltage = voltage
         self.motor.set_voltage(voltage)
         self._set_runaway()
+
+    def _commanded(self, values: ArrayLike, what: str, limit: float, unit: str) -> np.ndarray:
+        """Return a command per scenario (S,), or raise ParameterError naming what is wrong."""
+        values = np.broadcast_to(np.asarray(values, float), (self.count,)).copy()
+        if not (np.isfinite(values).all() and (values >= 0.0).all() and (values <= limit).all()):
+            raise ParameterError(f'commanded {what} {values} is invalid: must be finite, in '
+                                 f'[0, {limit:g}] {unit}')
+        return values
 
     def command_frequency(self, frequency: Optional[ArrayLike]) -> None:
         """Turn the helix at ``frequency`` (Hz) where no motor is modelled; None: the parameter."""
@@ -272,11 +276,7 @@ class Simulator:
             self.commanded_frequency = None
             self._omega_dt = np.array([TWO_PI * s.frequency * self.dt for s in self.scenarios])
         else:
-            frequency = np.broadcast_to(np.asarray(frequency, float), (self.count,)).copy()
-            if not np.isfinite(frequency).all() or (frequency < 0.0).any() or (
-                    frequency > FREQUENCY_LIMIT).any():
-                raise ParameterError(f'commanded frequency {frequency} is invalid: must be '
-                                     f'finite, in [0, {FREQUENCY_LIMIT:g}] Hz')
+            frequency = self._commanded(frequency, 'frequency', FREQUENCY_LIMIT, 'Hz')
             self.commanded_frequency = frequency
             self._omega_dt = TWO_PI * frequency * self.dt
         constant = ~self.driven
