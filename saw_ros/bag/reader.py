@@ -254,6 +254,19 @@ def _decompress(compression: str, data, size: int) -> bytes:
     raise ValueError(f'unknown compression {compression!r}')
 
 
+def _learn(opcode: int, body, schemas: dict, channels: dict) -> bool:
+    """Keep a Schema or Channel record by its id (summary and chunks alike); True if it was one."""
+    if opcode == _SCHEMA:
+        schema = _parse(Schema, body)
+        schemas[schema.id] = schema
+    elif opcode == _CHANNEL:
+        channel = _parse(Channel, body)
+        channels[channel.id] = channel
+    else:
+        return False
+    return True
+
+
 def _records(data) -> Iterator[tuple]:
     """(opcode, body) of every record in ``data`` (a chunk's records); ValueError if cut."""
     view, pos, n = memoryview(data), 0, len(data)
@@ -306,13 +319,9 @@ def _read_summary(f, size: int, path: str, damage: List[Damage]) -> _Summary:
         return out
     try:
         for opcode, body in _records(data):
-            if opcode == _SCHEMA:
-                schema = _parse(Schema, body)
-                out.schemas[schema.id] = schema
-            elif opcode == _CHANNEL:
-                channel = _parse(Channel, body)
-                out.channels[channel.id] = channel
-            elif opcode == _CHUNK_INDEX:
+            if _learn(opcode, body, out.schemas, out.channels):
+                continue
+            if opcode == _CHUNK_INDEX:
                 index = _parse(ChunkIndex, body)
                 out.chunks[index.chunk_start_offset] = index
             elif opcode == _STATISTICS:
@@ -593,12 +602,8 @@ class BagReader:
             for op, rec in _records(records):
                 if op == _MESSAGE_OP:
                     batch.append(_MESSAGE.unpack_from(rec) + (rec,))
-                elif op == _SCHEMA:
-                    schema = _parse(Schema, rec)
-                    scan.schemas[schema.id] = schema
-                elif op == _CHANNEL:
-                    channel = _parse(Channel, rec)
-                    scan.channels[channel.id] = channel
+                else:
+                    _learn(op, rec, scan.schemas, scan.channels)
         except (ValueError, struct.error, UnicodeDecodeError, McapError) as exc:
             scan.lost = self._chunk_damage(path, at, scan.chunk_number, summary,
                                            summary.chunks.get(at),
