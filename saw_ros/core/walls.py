@@ -32,13 +32,14 @@ because the walls are long next to the decay length 1 / beta (about a centimetre
 
 Coupling: the forces depend on the depths, which depend on the deflections the forces make.
 Each step solves it for the tips that can touch (``Walls.solve``): Newton on their deflections,
-the contact law's hysteresis factor included so that the walls and the law agree to TOLERANCE,
-stepping only as far as the law's next kink (contact onset, leaving the hysteresis band) so
-that it cannot cycle, from the last step's shape. The others load nothing and read the shape.
+wall by wall, the contact law's hysteresis factor included so that the walls and the law agree
+to TOLERANCE, stepping only as far as the law's next kink (contact onset, leaving the
+hysteresis band) so that it cannot cycle, from the last two steps' shapes extrapolated. The
+others load nothing and read the shape.
 """
 from __future__ import annotations
 
-from typing import Any, Callable, cast, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, cast, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -46,10 +47,13 @@ from numpy.typing import ArrayLike
 from saw_ros.core.contact import ContactLaw, ContactState
 from saw_ros.core.params import Scenario
 
-# Newton steps per time step at most, from the last step's shape, until the deflections agree
-# with the contact law's forces within TOLERANCE (m): usually one or two.
+# Newton steps per time step at most, from the last two steps' shapes, until the deflections
+# agree with the contact law's forces within TOLERANCE (m): usually one (two or three for soft
+# tissue). 0.1 um, because over 4 s it moves the pose by 3e-8 m, against 8e-5 m between
+# integration.dt 1 ms and 0.5 ms (tests/core/test_walls.py keeps it so), at 1.1 iterations a
+# step for the silicone sheet against 1.7 for 1e-9.
 MAX_NEWTON = 12
-TOLERANCE = 1e-9
+TOLERANCE = 1e-7
 # Tips that can touch: within this share of the last step's largest deflection, plus MIN_MARGIN
 # (m), of the rigid surface (Walls.solve).
 CANDIDATE_MARGIN = 0.1
@@ -99,6 +103,7 @@ class Walls:
         if not ((side[:n] < 0).all() and (side[n:] > 0).all() and len(side) == 2 * n):
             raise ValueError('the walls expect the bottom tips first, then as many top tips')
         self.n = n
+        count = len(scenarios)
         self.active = np.array([x.foundation_stiffness > 0.0 for x in s])
         # Inactive scenarios of a mixed batch get harmless finite constants and a zero gain.
         k = np.array([x.foundation_stiffness if x.foundation_stiffness > 0 else 1.0 for x in s])
@@ -107,15 +112,41 @@ class Walls:
         self.beta = (k / (4.0 * ei)) ** 0.25
         self.half = b / 2.0
         self.gain = np.where(self.active, 1.0 / (2.0 * k * b), 0.0)    # m/N before the D terms
-        count = len(scenarios)
-        # (1 - i) beta: D(u) = exp(-beta u) cos(beta u) = Re exp(-(1 - i) beta u), one exp.
-        self._decay = ((1.0 - 1.0j) * self.beta)[:, None, None, None]
-        self._half = self.half[:, None, None, None]
-        self._gain = self.gain[:, None, None, None]
-        self.forces = np.zeros((count, 2, n))               # each tip's load on its wall, N
+        # D(u) = exp(-beta u) cos(beta u) = Re exp(z u), z = -(1 - i) beta: one exp. Outside a
+        # patch, D(r - b/2) - D(r + b/2) = Re(exp(z (r - b/2)) (1 - exp(z b))): bounded factors
+        # however wide the patch is against the decay length. Under it, 2 - 2 D(b/2).
+        z = -(1.0 - 1.0j) * self.beta
+        column: Callable[[np.ndarray], np.ndarray] = lambda a: a[:, None, None, None]  # noqa: E731
+        self._z, self._half = column(z), column(self.half)
+        self._outside = column(self.gain * (1.0 - np.exp(z * b)))
+        self._under = self.gain * (2.0 - 2.0 * np.exp(z * self.half).real)
+        self._compliant = np.repeat(2.0 * self._under, 2)[:, None]     # per wall (2 S, 1)
+        # What the outside formula gives a tip on itself (r = 0), replaced by _under, per size.
+        itself = self._under - (np.exp(z * self.half) * self._outside[:, 0, 0, 0]).real
+        self._on_itself = [itself[:, None, None, None] * np.eye(m) for m in range(n + 1)]
+        self._rows = (np.arange(2 * count) * n).reshape(count, 2, 1)   # (S, 2, n) -> flat
         self.largest = np.zeros(count)                      # the largest deflection, m
+        # Tips shallower than this (m, < 0: outside the rigid surface) cannot touch (solve).
+        self._reach = np.full((count, 1, 1), -MIN_MARGIN)
+        self.iterations = 0                                 # Newton iterations so far
+        self.unconverged = 0        # steps that ended at MAX_NEWTON, short of TOLERANCE
         self._x = np.zeros((count, 2, n))                   # where the tips were, m
+        # The deflection the last two steps solved at each tip (0 where a tip was not solved
+        # for), for the next step's first guess.
+        self._solved = np.zeros((count, 2, n))
+        self._solved_before = np.zeros((count, 2, n))
+        # Which tips the last step solved for (flat indices) and their loads, N.
+        self._flat = np.zeros((count, 2, 0), int)
+        self._loads = np.zeros((count, 2, 0))
         self._shape: Optional[np.ndarray] = np.zeros((count, 2, n))
+        self._eyes = [np.eye(k) for k in range(n + 1)]
+
+    @property
+    def forces(self) -> np.ndarray:
+        """Return each tip's load on its wall (S, 2, n), N: bottom tips, then top."""
+        out = np.zeros((len(self.beta), 2, self.n))
+        out.ravel()[self._flat] = self._loads
+        return out
 
     @property
     def shape_by_surface(self) -> np.ndarray:
@@ -129,37 +160,44 @@ class Walls:
         """Return the deflection at each tip (S, P), m, > 0 away from the robot."""
         return self.shape_by_surface.reshape(len(self.beta), 2 * self.n)
 
+    @property
+    def solved(self) -> np.ndarray:
+        """Return the deflection the last step solved at each tip (S, P), m (0: not solved)."""
+        return self._solved.reshape(len(self.beta), 2 * self.n)
+
     def reset(self) -> None:
-        self.forces[:] = 0.0
         self.largest[:] = 0.0
-        self._shape = np.zeros_like(self.forces)
+        self._reach[:] = -MIN_MARGIN
+        self._solved[:] = 0.0
+        self._solved_before[:] = 0.0
+        self._flat = self._flat[..., :0]
+        self._loads = self._loads[..., :0]
+        self._shape = np.zeros_like(self._x)
 
     def _by_surface(self, values: Any) -> Any:
         """Return (S, P) as an (S, 2, n) view, bottom tips then top tips; scalars stay scalars."""
-        if np.ndim(values) == 0:
+        if not isinstance(values, np.ndarray):
             return values
-        return np.reshape(values, (len(self.beta), 2, self.n))
+        return values.reshape(len(self.beta), 2, self.n)
 
-    def compliance(self, x: np.ndarray, sources: Optional[np.ndarray] = None) -> np.ndarray:
+    def compliance(self, x: np.ndarray) -> np.ndarray:
         """
-        Return G, m/N: deflection at tip i per newton on tip j of the same surface.
+        Return G (S, 2, m, m), m/N: deflection at tip i per newton on tip j of the same surface.
 
-        ``x`` (S, P) or by surface (S, 2, n): the tips' abscissae; ``sources`` (S, 2, m): the
-        loaded tips' (default: the same tips, G is then (S, 2, n, n)).
+        ``x`` (S, P), or by surface (S, 2, m): the tips' abscissae.
         """
         xs = self._by_surface(x) if np.ndim(x) == 2 else x
-        src = xs if sources is None else sources
-        r = np.abs(xs[..., :, None] - src[..., None, :])
-        # Outside the patch: D(r - b/2) - D(r + b/2) (module docstring).
-        g = (np.exp(self._decay * np.abs(r - self._half) * -1.0)
-             - np.exp(self._decay * (r + self._half) * -1.0)).real
-        # Inside it (a tip on itself, or two tips closer than b/2): 2 - D(b/2 + r) - D(b/2 - r).
-        inside = r <= self._half
-        if inside.any():
-            beta = np.broadcast_to(self.beta[:, None, None, None], r.shape)[inside]
-            half = np.broadcast_to(self._half, r.shape)[inside]
-            g[inside] = _patch(r[inside], beta, half)
-        g *= self._gain
+        r = np.abs(xs[..., :, None] - xs[..., None, :])
+        g = (np.exp(self._z * np.abs(r - self._half)) * self._outside).real
+        m = xs.shape[-1]
+        g += self._on_itself[m]
+        # Two tips closer than half a contact width (wide contacts only): the patch formula.
+        under = r < self._half
+        if np.count_nonzero(under) > under.size // m:
+            beta = np.broadcast_to(self.beta[:, None, None, None], r.shape)[under]
+            half = np.broadcast_to(self._half, r.shape)[under]
+            gain = np.broadcast_to(self.gain[:, None, None, None], r.shape)[under]
+            g[under] = gain * _patch(r[under], beta, half)
         return cast(np.ndarray, g)
 
     def solve(self, penetration: np.ndarray, x: np.ndarray, state: ContactState,
@@ -178,90 +216,130 @@ class Walls:
         nothing and only reads the shape.
         """
         d = self._by_surface(penetration)
-        xs = self._by_surface(x)
-        margin = CANDIDATE_MARGIN * self.largest[:, None, None] + MIN_MARGIN
-        count = int((d > -margin).sum(axis=-1).max())
-        self._x[:] = xs
+        count = int((d > self._reach).sum(axis=-1).max())
+        self._x[:] = self._by_surface(x)
         self._shape = None
+        # The last two steps' solutions; the older buffer takes this step's.
+        last, prior = self._solved, self._solved_before
+        self._solved, self._solved_before = prior, last
         if count == 0:
-            self.forces[:] = 0.0
+            prior[:] = 0.0
+            self._flat = self._flat[..., :0]
+            self._loads = self._loads[..., :0]
             self.largest[:] = 0.0
+            self._reach[:] = -MIN_MARGIN
             return penetration.copy()
-        pick = np.argsort(-d, axis=-1)[..., :count]                 # (S, 2, K), deepest first
+        flat = np.argsort(d, axis=-1)[..., -count:]        # (S, 2, K): the deepest
+        flat += self._rows
+        # One row per wall of each scenario (2 S, K) from here: each is solved on its own.
+        flat = flat.reshape(-1, count)
         take: Callable[[Any], Any] = lambda a: (  # noqa: E731
-            a if np.ndim(a) == 0 else np.take_along_axis(self._by_surface(a), pick, axis=-1))
-        xk = np.take_along_axis(xs, pick, axis=-1)
-        g = self.compliance(xk)                                      # (S, 2, K, K)
-        dk = np.take_along_axis(d, pick, axis=-1)
-        before = take(state.depth)                                   # the law's memory
-        constants = (law.kn_mean, law.kn_half, law.kn_rate, law.exponent)
-        mean, half, rate, p = (take(v) for v in constants)
-        # The normal law's kinks in the depth: contact at 0, and where its hysteresis factor
-        # leaves the band (loading/unloading faster than hysteresis_speed).
-        width = half / rate
-        eye = np.eye(count)
-        # Warm start: the last step's loads on these tips where they are now (a step moves
-        # them by less than a tenth of a millimetre).
-        w = (g @ np.take_along_axis(self.forces, pick, axis=-1)[..., None])[..., 0]
-        for _ in range(MAX_NEWTON):
+            a.ravel()[flat] if isinstance(a, np.ndarray) else a)
+        dk = penetration.ravel()[flat]
+        # First guess: the deflection of the last two steps, extrapolated (it moves smoothly;
+        # a tip not solved for before starts from 0 and settles in the first Newton step).
+        w = last.ravel()[flat]
+        w += w
+        w -= prior.ravel()[flat]
+        prior[:] = 0.0
+        w, force = self._balance(dk, w, self.compliance(x.ravel()[flat].reshape(
+            -1, 2, count)).reshape(-1, count, count), state.depth.ravel()[flat],
+            [take(v) for v in (law.kn_mean, law.kn_half, law.kn_rate, law.exponent)])
+        self._flat, self._loads = flat.reshape(-1, 2, count), force.reshape(-1, 2, count)
+        # This step's solution; a tip solved for the first time is its own before (no trend).
+        fresh = last.ravel()[flat] == 0.0
+        if fresh.any():
+            last.ravel()[flat[fresh]] = w[fresh]
+        prior.ravel()[flat] = w
+        self.largest[:] = w.reshape(-1, 2 * count).max(axis=1)
+        np.multiply(self.largest[:, None, None], -CANDIDATE_MARGIN, out=self._reach)
+        self._reach -= MIN_MARGIN
+        depth = penetration.copy()
+        depth.ravel()[flat] = dk - w
+        return depth
+
+    def _balance(self, dk: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.ndarray,
+                 constants: List[Any]) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Return the deflections (N, K) that the contact law's forces make, and those forces.
+
+        One row per wall: ``dk`` the tips' depths into the rigid wall, ``w`` a first guess,
+        ``g`` (N, K, K) the compliance, ``before`` the law's last depths; ``constants`` the
+        law's k_mean, k_half, k_rate and exponent (scalars or (N, K)). Newton on w, the
+        contact law's hysteresis factor included, per wall; the walls that have converged
+        leave the iteration.
+        """
+        mean, half, rate, p = constants
+        rows = np.arange(len(dk))                            # the walls still iterating
+        solved, loads = np.empty_like(w), np.empty_like(w)
+        compliant = self._compliant
+        eye = self._eyes[dk.shape[1]]
+        # The law's kinks in the depth: leaving its hysteresis band on either side (loading or
+        # unloading faster than hysteresis_speed), and contact.
+        kinks = np.stack((before - half / rate, before + half / rate, np.zeros_like(before)))
+        for iteration in range(MAX_NEWTON):
             delta = dk - w
             touching = np.maximum(delta, 0.0)
             # The normal law of core.contact at this depth, hysteresis factor included:
             # F = (k_mean + clip((delta - before) rate, -k_half, k_half)) delta^p.
-            change = (touching - before) * rate
-            band = np.abs(change) < half
-            factor = mean + np.clip(change, -half, half)
-            power = touching ** p
+            change = touching - before
+            change *= rate
+            factor = np.minimum(change, half)
+            np.maximum(factor, -half, out=factor)
+            factor += mean
+            root = touching ** (p - 1.0)
+            power = root * touching
             force = factor * power
+            slope = factor * root
+            slope *= p
+            loading = (np.abs(change) < half) * rate          # the band's rate term, N/m^(p+1)
+            slope += loading * power
             residual = w - (g @ force[..., None])[..., 0]
-            open_ = np.abs(residual).max(axis=-1) > TOLERANCE         # (S, 2) still to solve
-            if not open_.any():
-                break
-            slope = factor * p * touching ** (p - 1.0)
-            slope += np.where(band & (delta > 0.0), rate * power, 0.0)
-            # d residual / d w = I + G diag(slope)  (delta = d - w), for the walls not there yet.
-            step = np.zeros_like(w)
-            if open_.all():
-                step = np.linalg.solve(eye + g * slope[..., None, :], residual[..., None])[..., 0]
+            # d residual / d w = I + G diag(slope)  (delta = d - w).
+            jacobian = g * slope[..., None, :]
+            jacobian += eye
+            step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
+            # The law is smooth between its kinks only (contact; leaving or entering the
+            # hysteresis band, on either side): a step that would carry a tip across one stops
+            # just past it, the next starts from the other side's slope. The residual is
+            # monotone in w, so this cannot cycle.
+            ahead = delta - kinks
+            behind = ahead + step
+            crosses = ahead * behind < 0.0
+            kinked = crosses.any()
+            if kinked:
+                to_kink = np.where(crosses, ahead / np.where(crosses, ahead - behind, 1.0), 1.0)
+                fraction = np.minimum(to_kink.min(axis=(0, 2)) * (1.0 + 1e-6) + 1e-12, 1.0)
+                w -= fraction[:, None] * step
             else:
-                step[open_] = np.linalg.solve(eye + g[open_] * slope[open_][:, None, :],
-                                              residual[open_][..., None])[..., 0]
-            # The law is smooth between its kinks only: a step that would carry a tip across
-            # one stops just past it (the next step starts from the other side's slope). The
-            # residual is monotone in w, so this cannot cycle.
-            new = delta + step
-            fraction = 1.0
-            for kink in (0.0, before - width, before + width):
-                crosses = (delta - kink) * (new - kink) < 0.0
-                if crosses.any():
-                    to_kink = np.where(crosses, (kink - delta) / np.where(crosses, step, 1.0),
-                                       1.0)
-                    fraction = np.minimum(fraction, to_kink.min(axis=-1, keepdims=True)
-                                          * (1.0 + 1e-6) + 1e-12)
-            w -= np.minimum(fraction, 1.0) * step
-        self.forces[:] = 0.0
-        np.put_along_axis(self.forces, pick, force, axis=-1)
-        self.largest[:] = w.max(axis=(1, 2))
-        # The others are not touching (shallower than the margin, more than any uplift): the
-        # contact law sees them free with or without the shape, which is computed when asked.
-        depth = self._by_surface(penetration.copy())
-        np.put_along_axis(depth, pick, dk - w, axis=-1)
-        return cast(np.ndarray, depth.reshape(penetration.shape))
-
-    def shape(self, x_tips: np.ndarray, samples: np.ndarray) -> np.ndarray:
-        """
-        Return each wall's deflection (S, 2, m) at abscissae ``samples`` (m), from the forces.
-
-        Bottom first, top second; > 0 away from the robot. Rigid scenarios: zeros.
-        """
-        out = np.zeros((len(self.beta), 2, len(samples)))
-        xs = self._by_surface(x_tips)
-        for i in np.flatnonzero(self.active):
-            for k in range(2):
-                r = samples[:, None] - xs[i, k][None, :]
-                out[i, k] = self.gain[i] * _patch(r, self.beta[i], self.half[i]) @ \
-                    self.forces[i, k]
-        return out
+                w -= step
+            # Converged when what the step leaves of the residual, G F'' step^2 / 2 (twice the
+            # tip's own compliance for its neighbours'), is below TOLERANCE; in the law's
+            # straight parts (free, or a linear law) the step is exact.
+            left = (p - 1.0) * factor
+            left /= np.maximum(touching, 1e-300)
+            left += loading + loading                          # F'' / (p delta^(p-1))
+            left *= root
+            left *= step * step
+            left *= p * compliant[rows]
+            done = left.max(axis=1) < TOLERANCE
+            if kinked:
+                done &= fraction == 1.0
+            if done.all():
+                break
+            if done.any():
+                solved[rows[done]], loads[rows[done]] = w[done], force[done]
+                going = ~done
+                rows, dk, w, g = rows[going], dk[going], w[going], g[going]
+                before, force = before[going], force[going]
+                kinks = kinks[:, going]
+                mean, half, rate, p = (v[going] if isinstance(v, np.ndarray) else v
+                                       for v in (mean, half, rate, p))
+        self.iterations += iteration + 1
+        if not done.all():
+            self.unconverged += 1
+        solved[rows], loads[rows] = w, force
+        return solved, loads
 
 
 def finite_difference_deflection(loads: Sequence[float], at: Sequence[float], foundation: float,

@@ -4,13 +4,17 @@ import math
 import numpy as np
 import pytest
 
+from saw_ros.core import walls as walls_module
 from saw_ros.core.dynamics import Simulator
 from saw_ros.core.params import ParameterError, Scenario
 from saw_ros.core.walls import deflection, finite_difference_deflection, point_deflection, Walls
+from saw_ros.core.walls import TOLERANCE
 
 K, EI, B = 1.5e5, 6.25e-4, 0.005          # the silicone sheet of docs/walls.md
 SHEET = Scenario().with_values({'surface.foundation_stiffness': K,
                                 'surface.bending_stiffness': EI})
+TISSUE = Scenario().with_values({'surface.foundation_stiffness': 9e3,       # docs/walls.md
+                                 'surface.bending_stiffness': 1.2e-5})
 
 
 def test_a_narrow_patch_is_hetenyis_point_load():
@@ -100,17 +104,38 @@ def test_stored_energy_is_the_work_of_the_loads_along_any_path():
     assert work(one_by_one) == pytest.approx(stored, rel=1e-9)
 
 
-def test_the_coupled_step_balances_the_walls_with_the_contact_law():
-    sim = Simulator(SHEET)
+@pytest.mark.parametrize('walls', [SHEET, TISSUE], ids=['sheet', 'tissue'])
+def test_the_coupled_step_balances_the_walls_with_the_contact_law(walls):
+    sim = Simulator(walls)
     worst = 0.0
     for _ in range(1500):
         sim.step()
-        g = sim.walls.compliance(sim._x)
-        forces = sim.walls._by_surface(sim.contacts.normal)
-        carried = (g @ forces[..., None])[..., 0]
-        worst = max(worst, np.abs(carried - sim.walls.shape_by_surface).max())
-    assert worst < 1e-8                                     # m, against ~1.5 mm deflections
-    assert sim.walls.deflection.max() > 5e-4                # the sheet did bend
+        solved = sim.walls._flat                             # the tips each step solved for
+        g = sim.walls.compliance(sim._x.ravel()[solved])
+        carried = (g @ sim.contacts.normal.ravel()[solved][..., None])[..., 0]
+        worst = max(worst, np.abs(carried - sim.walls.solved.ravel()[solved]).max())
+    assert worst < TOLERANCE                                # m, against mm deflections
+    assert sim.walls.unconverged == 0
+    assert sim.walls.deflection.max() > 5e-4                # the walls did bend
+
+
+def test_the_solver_tolerance_moves_the_robot_far_less_than_the_time_step_does():
+    def poses(tolerance, dt=0.001):
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(walls_module, 'TOLERANCE', tolerance)
+            sim = Simulator(SHEET.with_values({'integration.dt': dt}))
+            every = int(round(0.001 / dt))
+            out = []
+            for k in range(int(round(1.5 / dt))):
+                sim.step()
+                if (k + 1) % every == 0:
+                    out.append(sim.q[:3, 0].copy())
+        return np.array(out)
+
+    reference = poses(TOLERANCE / 100.0)
+    solver = np.abs(poses(TOLERANCE) - reference).max()
+    time_step = np.abs(poses(TOLERANCE / 100.0, dt=0.0005) - reference).max()
+    assert solver < time_step / 100.0
 
 
 def test_rigid_walls_are_the_default_and_untouched():
@@ -138,8 +163,7 @@ def test_very_stiff_walls_are_the_rigid_ones():
 
 
 def test_soft_walls_give_way_and_the_depth_stays_below_its_limit():
-    tissue = Scenario().with_values({'surface.foundation_stiffness': 9e3,
-                                     'surface.bending_stiffness': 1.2e-5})
+    tissue = TISSUE
     sim = Simulator(tissue)
     for _ in range(3000):
         sim.step()
