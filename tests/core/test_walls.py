@@ -179,3 +179,33 @@ def test_soft_walls_give_way_and_the_depth_stays_below_its_limit():
 def test_wall_parameters_out_of_range_are_refused(name, value):
     with pytest.raises(ParameterError, match=name.split('.')[1]):
         Scenario().with_values({name: value})
+
+
+def test_over_a_run_the_work_done_on_the_walls_is_the_energy_they_store():
+    # A quasi-static elastic wall neither makes nor loses energy: the work of the tips' loads
+    # on it, F . dw at the tips (the shape's change between steps, where the tips are now),
+    # sums to the energy 1/2 F . w it holds at the end (none at the start).
+    s = SHEET.surface
+    sim = Simulator(SHEET)
+    side = np.where(sim.table.side > 0, 1, 0)
+
+    def field(at, x, loads):
+        """Return the deflection at ``at`` under ``loads`` at ``x`` (same surface only)."""
+        same = side[:, None] == side[None, :]
+        g = deflection(at[:, None] - x[None, :], 1.0, s.foundation_stiffness,
+                       s.bending_stiffness, s.contact_width) * same
+        return g @ loads
+
+    x0, f0 = sim._x[0].copy(), np.zeros(sim.table.count)
+    work, done = 0.0, 0.0
+    for _ in range(1500):
+        sim.step()
+        x1, f1 = sim._x[0].copy(), sim.contacts.normal[0].copy()
+        change = field(x1, x1, f1) - field(x1, x0, f0)
+        step_work = 0.5 * (f0 + f1) @ change
+        work += step_work
+        done += abs(step_work)
+        x0, f0 = x1, f1
+    stored = 0.5 * f0 @ field(x0, x0, f0)
+    assert stored > 1e-3                                      # J: the walls hold some
+    assert abs(work - stored) < 2e-3 * done                   # of all the work done on them
