@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TwistStamped
@@ -316,3 +316,51 @@ def walls_cloud(along: np.ndarray, deflection: np.ndarray, gap: float,
     time_msg(nanoseconds, msg.header.stamp)
     msg.data = points.tobytes()
     return msg
+
+
+def walls_of(msg: PointCloud2) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Return (along (m,), deflection (2, m)) of a /saw/walls cloud: ``walls_cloud`` read back.
+
+    Read with numpy by the cloud's own field offsets and point_step (other fields are ignored).
+    along: the bottom wall's x, increasing; deflection: bottom then top (the top's interpolated
+    at those x when its points lie elsewhere), m, > 0 away from the robot. Raises ValueError for
+    a cloud that is not one: fields x, y, z, deflection not FLOAT32 or surface not UINT8 (one
+    each), data shorter than width * height * point_step, surface other than 0 and 1, fewer
+    than two points a wall, repeated x or values not finite.
+    """
+    have = {f.name: f for f in msg.fields}
+    wrong = [f.name for f in WALL_FIELDS if f.name not in have
+             or (have[f.name].datatype, have[f.name].count) != (f.datatype, 1)]
+    if wrong:
+        names = {v: k for k, v in vars(PointField).items() if k.isupper() and isinstance(v, int)}
+        got = ', '.join(f'{f.name} {names.get(f.datatype, f.datatype)}x{f.count}'
+                        for f in msg.fields) or 'none'
+        raise ValueError(f'fields {got}: expected x, y, z, deflection FLOAT32 and surface UINT8 '
+                         f'(wrong or missing: {", ".join(wrong)})')
+    order = '>' if msg.is_bigendian else '<'
+    count = msg.width * msg.height
+    try:
+        dtype = np.dtype({'names': [f.name for f in WALL_FIELDS],
+                          'formats': [order + 'f4'] * 4 + ['u1'],
+                          'offsets': [have[f.name].offset for f in WALL_FIELDS],
+                          'itemsize': msg.point_step})
+        points = np.frombuffer(bytes(msg.data), dtype=dtype, count=count)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{count} points of {msg.point_step} bytes in {len(msg.data)} bytes '
+                         f'of data: {exc}') from None
+    if not np.isin(points['surface'], (BOTTOM, TOP)).all():
+        raise ValueError('surface other than 0 (bottom) and 1 (top)')
+    walls = []
+    for surface in (BOTTOM, TOP):
+        rows = np.sort(points[points['surface'] == surface], order='x')
+        x, w = rows['x'].astype(float), rows['deflection'].astype(float)
+        if len(x) < 2 or not (np.diff(x) > 0).all() or not np.isfinite(w).all():
+            raise ValueError(f'{"bottom" if surface == BOTTOM else "top"} wall: two or more '
+                             'points at distinct, finite x with finite deflections needed (got '
+                             f'{len(x)} points)')
+        walls.append((x, w))
+    (along, bottom), (x_top, top) = walls
+    if len(x_top) != len(along) or (x_top != along).any():
+        top = np.interp(along, x_top, top)
+    return along, np.stack([bottom, top])

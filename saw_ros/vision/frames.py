@@ -2,7 +2,8 @@
 Side-view renderer: what a level camera beside the track sees of the robot between its surfaces.
 
 Drawn, back to front: a textured wall (static), the two rigid boards, the two silicone layers with
-a dent wherever a link tip presses in (depth = the tip's penetration, width about a link), the
+a dent wherever a link tip presses in (depth = the tip's penetration, width about a link), bent
+along the walls' shape when the walls bend (``render(..., walls=)``, from /saw/walls), the
 robot (spine, base link, wave links from down tip to up tip, head, tail plate) and two pink
 markers on the body's side: front on the head, back on the tail plate, both on the body axis and
 symmetric about the COM by default, so that their midpoint is the COM.
@@ -86,6 +87,29 @@ class RenderOptions:
         check_fields(self)          # the spec() ranges; ParameterError is a ValueError
 
 
+class WallShape(NamedTuple):
+    """Bending walls: abscissae (m, increasing) and deflections (2, m: bottom, top; > 0 away)."""
+
+    along: np.ndarray
+    deflection: np.ndarray
+
+
+def wall_shape(along, deflection) -> WallShape:
+    """
+    Return a checked ``WallShape``: float arrays, (m,) and (2, m), m >= 2, increasing, finite.
+
+    Raises ValueError otherwise.
+    """
+    a = np.asarray(along, float)
+    w = np.asarray(deflection, float)
+    if a.ndim != 1 or len(a) < 2 or w.shape != (2, len(a)):
+        raise ValueError(f'walls: along (m,) and deflection (2, m) with m >= 2, not {a.shape} '
+                         f'and {w.shape}')
+    if not (np.isfinite(a).all() and np.isfinite(w).all()) or not (np.diff(a) > 0).all():
+        raise ValueError('walls: abscissae must increase and every value be finite')
+    return WallShape(a, w)
+
+
 class _GeometryTable(PhaseTable):
     """
     Body-frame link geometry over one wave cycle.
@@ -167,11 +191,21 @@ class Renderer:
                 if len(poly) <= 4 else \
                 cv2.fillPoly(img, [self._fixed(poly)], colour, cv2.LINE_AA, SHIFT)
 
-    def _silicone(self, img, x0, x1, down_tips, up_tips) -> None:
-        """Both silicone layers, dented where tips press in (penetration > 0)."""
+    def _silicone(self, img, x0, x1, down_tips, up_tips, walls=None) -> None:
+        """
+        Both silicone layers, dented where tips press in (penetration > 0).
+
+        ``walls``: (along, deflection (2, m)) of bending walls, or None. A wall deflected
+        nowhere (all zeros) is drawn flat, by the flat code: the same pixels as without walls.
+        """
         t = self.options.silicone_thickness
         width = body.dent_half_width(self.robot)   # half-width of a dent, m
-        for tips, level, sign in ((down_tips, 0.0, 1.0), (up_tips, self.gap, -1.0)):
+        for surface, (tips, level, sign) in enumerate(((down_tips, 0.0, 1.0),
+                                                       (up_tips, self.gap, -1.0))):
+            if walls is not None and walls[1][surface].any():
+                self._bent_silicone(img, x0, x1, tips, level, sign, walls[0],
+                                    walls[1][surface])
+                continue
             pen = sign * (level - tips.imag)     # > 0 inside the surface
             pressed = pen > 0
             edge = [x0 + 1j * level]
@@ -186,6 +220,42 @@ class Renderer:
             back = level - sign * t
             poly = np.array(edge + [x1 + 1j * back, x0 + 1j * back])
             self._fill(img, [poly], SILICONE)
+
+    def _bent_silicone(self, img, x0, x1, tips, level, sign, along, w) -> None:
+        """
+        One silicone layer on a bending wall: deflected by ``w`` at ``along`` (> 0 away).
+
+        Its face follows the wall, y = level - sign w(x) (linear between the samples, w = 0
+        beyond them), dented where tips press into the DEFLECTED wall (the contact law's depth,
+        d - w); its back is t behind the face where the wall is pushed away, and stays at the
+        board where it lifts (w < 0), so that no gap opens. One polygon: the face through the
+        samples in view and the dents' vertices, the back through the samples; samples within
+        1/100 px of the flat wall, between two others as flat, are left out (the drawn edge
+        moves by less than that): the cost is in the polygon's edges, and the walls bend only
+        around the robot.
+        """
+        t = self.options.silicone_thickness
+        width = body.dent_half_width(self.robot)
+        pen = sign * (level - tips.imag) - np.interp(tips.real, along, w, left=0.0, right=0.0)
+        pressed = pen > 0
+        inside = (along > x0) & (along < x1)
+        bent = np.abs(w) > 0.01 / self.camera.scale
+        bent[1:] |= bent[:-1].copy()
+        bent[:-1] |= bent[1:].copy()
+        samples = np.concatenate(([x0], along[inside & bent], [x1]))
+        ws = np.interp(samples, along, w, left=0.0, right=0.0)
+        back = samples + 1j * (level - sign * (t + np.maximum(ws, 0.0)))
+        if pressed.any():
+            tx, depth = tips.real[pressed], pen[pressed]
+            dents = (tx[:, None] + width * np.linspace(-1.0, 1.0, 9)[None, :]).ravel()
+            xs = np.sort(np.concatenate([samples, dents]))
+            d = (xs[:, None] - tx[None, :]) / width
+            bump = np.where(np.abs(d) < 1.0, np.cos(0.5 * np.pi * d) ** 2, 0.0)
+            face = xs + 1j * (level - sign * (np.interp(xs, along, w, left=0.0, right=0.0)
+                                              + (bump * depth[None, :]).max(axis=1)))
+        else:
+            face = samples + 1j * (level - sign * ws)
+        self._fill(img, [np.concatenate([face, back[::-1]])], SILICONE)
 
     def _marker(self, img, centre: complex) -> None:
         """Return a pink disc drawn from its exact (1-pixel ramp) coverage."""
@@ -231,11 +301,12 @@ class Renderer:
         return complex(p[0]), complex(p[1])
 
     def draw(self, pose: RobotPose, out: np.ndarray, hidden: Iterable[str] = (),
-             t: float = 0.0) -> np.ndarray:
+             t: float = 0.0, walls: Optional[WallShape] = None) -> np.ndarray:
         """
         Draw the scene at one instant (time t for moving clutter) into ``out``.
 
-        The ideal picture: no lens, no blur, brightness or noise.
+        The ideal picture: no lens, no blur, brightness or noise. ``walls``: the bending walls'
+        shape (``wall_shape``), or None for flat ones.
         """
         np.copyto(out, self._background)
         clutter = self.scene.clutter
@@ -245,7 +316,7 @@ class Renderer:
         com = complex(pose.x, pose.y)
         rot = complex(math.cos(pose.theta), math.sin(pose.theta))
         x0, x1 = self.camera.visible_x_range(0.1)
-        self._silicone(out, x0, x1, com + rot * down, com + rot * up)
+        self._silicone(out, x0, x1, com + rot * down, com + rot * up, walls)
 
         def world(points):
             return com + rot * points
@@ -271,13 +342,21 @@ class Renderer:
 
     def render(self, pose: RobotPose, hidden: Iterable[str] = (),
                pose_at: Optional[Callable[[float], RobotPose]] = None,
-               t: Optional[float] = None) -> np.ndarray:
+               t: Optional[float] = None, walls=None) -> np.ndarray:
         """
         One finished frame (a new array).
 
         With motion blur (options.exposure > 0) give ``pose_at(time)`` and the frame time ``t``:
         sub-frames are drawn over [t - exposure / 2, t + exposure / 2].
+
+        ``walls``: the shape of bending walls at the frame time, (along (m,), deflection (2, m))
+        in the surface frame: abscissae (m, increasing) and each wall's deflection there (m,
+        bottom then top, > 0 away from the robot), as /saw/walls carries it. Each surface is
+        drawn following it (the bottom's edge at y = -w(x), the top's at gap + w(x)), linear
+        between the samples and flat beyond them. None (the default), or all zeros: flat
+        surfaces, the same pixels as ever.
         """
+        shape = None if walls is None else wall_shape(*walls)
         opt, scene = self.options, self.scene
         cam = self.camera
         t_frame = 0.0 if t is None else t
@@ -289,7 +368,8 @@ class Renderer:
             n = opt.blur_samples
             for k in range(n):
                 tk = t + opt.exposure * ((k + 0.5) / n - 0.5)
-                cv2.accumulate(self.draw(pose_at(tk), self._frame, hidden, tk), self._accum)
+                cv2.accumulate(self.draw(pose_at(tk), self._frame, hidden, tk, shape),
+                               self._accum)
             if self._gradient is not None:
                 frame = cv2.multiply(self._accum, self._gradient, scale=brightness / n,
                                      dtype=cv2.CV_8U)
@@ -297,9 +377,9 @@ class Renderer:
                 frame = cv2.convertScaleAbs(self._accum, alpha=brightness / n)
         elif self._gradient is None and brightness == 1.0:
             # Drawn straight into the new frame: a 1280x720 copy less per frame.
-            frame = self.draw(pose, np.empty_like(self._frame), hidden, t_frame)
+            frame = self.draw(pose, np.empty_like(self._frame), hidden, t_frame, shape)
         else:
-            self.draw(pose, self._frame, hidden, t_frame)
+            self.draw(pose, self._frame, hidden, t_frame, shape)
             if self._gradient is not None:
                 frame = cv2.multiply(self._frame, self._gradient, scale=brightness,
                                      dtype=cv2.CV_8U)
@@ -378,6 +458,47 @@ class StampedSeries:
             return tuple(x + w * ((y - x + math.pi) % (2 * math.pi) - math.pi)
                          for x, y in zip(a, b))
         return tuple(x + w * (y - x) for x, y in zip(a, b))
+
+
+class StampedShapes:
+    """
+    Stamped wall shapes (``WallShape``) arriving in order; ``before(t)`` gives the one at t.
+
+    That is the last one stamped at or before t, while it is recent: no older than ``stale_ns``
+    or three times the spacing of the last two, whichever is longer (walls that stop bending,
+    surface.foundation_stiffness set to 0 while the simulator runs, stop publishing their
+    shape: flat again). Keeps the last ``keep_ns`` of them; a stamp that goes back (a replay
+    restarted) clears them. Stamps are ns in the camera node.
+    """
+
+    def __init__(self, keep_ns: int, stale_ns: int):
+        self.keep_ns, self.stale_ns = int(keep_ns), int(stale_ns)
+        self.t: List[int] = []
+        self.v: List[WallShape] = []
+
+    def add(self, t: int, shape: WallShape) -> None:
+        """Keep ``shape`` stamped ``t``; it replaces one of the same stamp."""
+        if self.t and t <= self.t[-1]:
+            if t < self.t[-1]:
+                self.t.clear()
+                self.v.clear()
+            else:
+                self.t.pop()
+                self.v.pop()
+        self.t.append(t)
+        self.v.append(shape)
+        if self.t[-1] - self.t[0] > self.keep_ns:
+            cut = bisect.bisect_left(self.t, self.t[-1] - self.keep_ns)
+            del self.t[:cut]
+            del self.v[:cut]
+
+    def before(self, t: float) -> Optional[WallShape]:
+        """Return the shape at ``t``: the last at or before it, if recent; else None (flat)."""
+        i = bisect.bisect_right(self.t, t)
+        if not i:
+            return None
+        spacing = self.t[-1] - self.t[-2] if len(self.t) > 1 else 0
+        return self.v[i - 1] if t - self.t[i - 1] <= max(self.stale_ns, 3 * spacing) else None
 
 
 def pose_between(poses: StampedSeries, phases: StampedSeries, t_ns: float) -> RobotPose:

@@ -276,3 +276,54 @@ def test_motor_message_counts_the_drawn_current_negative():
     assert constant is msg and constant.voltage == 0.0 and math.isnan(constant.current)
     assert not constant.present
     assert constant.power_supply_status == BatteryState.POWER_SUPPLY_STATUS_UNKNOWN
+
+
+def test_walls_cloud_reads_back_and_other_clouds_are_refused():
+    """/saw/walls: walls_of reads walls_cloud back (the camera's input) and refuses the rest."""
+    along = np.linspace(-0.4, 0.6, 201)
+    deflection = np.stack([3e-3 * np.exp(-((along - 0.1) / 0.02) ** 2),
+                           -1e-4 * np.cos(along)])
+    msg = deserialize_message(serialize_message(conv.walls_cloud(along, deflection, 0.045,
+                                                                 5_000_000)), PointCloud2)
+    got_along, got = conv.walls_of(msg)
+    np.testing.assert_allclose(got_along, along, atol=1e-7)          # float32 on the wire
+    np.testing.assert_allclose(got, deflection, atol=1e-9)
+    assert got.shape == (2, 201) and got.dtype == np.float64
+    # The same points in another order and layout (a field added, top wall first): same shape.
+    points = conv.points_of(msg)[::-1]
+    wide = np.zeros(len(points), [('surface', 'u1'), ('pad', '<f8'), ('deflection', '<f4'),
+                                  ('x', '<f4'), ('y', '<f4'), ('z', '<f4')])
+    for name in conv.WALL_DTYPE.names:
+        wide[name] = points[name]
+    fields = [PointField(name=n, offset=wide.dtype.fields[n][1], count=1,
+                         datatype={'|u1': PointField.UINT8, '<f8': PointField.FLOAT64,
+                                   '<f4': PointField.FLOAT32}[wide.dtype.fields[n][0].str])
+              for n in wide.dtype.names]
+    other = PointCloud2(height=1, width=len(wide), fields=fields, point_step=wide.itemsize,
+                        row_step=wide.nbytes, is_dense=True)
+    other.data = wide.tobytes()
+    np.testing.assert_array_equal(conv.walls_of(other)[1], got)
+
+    def refused(match, **change):
+        bad = PointCloud2(height=msg.height, width=msg.width, fields=list(msg.fields),
+                          point_step=msg.point_step, row_step=msg.row_step, is_dense=True)
+        bad.data = bytes(msg.data)
+        for k, v in change.items():
+            setattr(bad, k, v)
+        with pytest.raises(ValueError, match=match):
+            conv.walls_of(bad)
+
+    refused('wrong or missing: deflection', fields=[f for f in msg.fields
+                                                    if f.name != 'deflection'])
+    refused('wrong or missing: surface', fields=[
+        f if f.name != 'surface' else PointField(name='surface', offset=16, count=1,
+                                                 datatype=PointField.FLOAT32)
+        for f in msg.fields])
+    refused('fields none', fields=[])
+    refused('bytes of data', width=msg.width + 1)                    # data too short
+    refused('bytes of data', point_step=4)                           # fields beyond a point
+    refused('top wall.*got 0 points', data=bytes(msg.data)[:20 * 201], width=201)  # bottom only
+    refused('bottom wall.*got 1 points', data=bytes(msg.data)[20 * 200:], width=202)
+    contacts = contacts_msg(_hand_points(), 7_000_000)               # another cloud
+    with pytest.raises(ValueError, match='wrong or missing: deflection'):
+        conv.walls_of(contacts)

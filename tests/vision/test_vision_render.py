@@ -6,7 +6,8 @@ import pytest
 
 from saw_ros.core import Scenario
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.frames import PINK, Renderer, RenderOptions, RobotPose
+from saw_ros.vision.frames import (PINK, Renderer, RenderOptions, RobotPose, StampedShapes,
+                                   wall_shape)
 from saw_ros.vision.tracker import detect
 
 POSE = RobotPose(0.05, 0.0225, math.radians(1.5), 1.0)
@@ -79,3 +80,161 @@ def test_render_is_fast_enough_smoke():
     for k in range(30):
         r.render(POSE._replace(phase=0.1 * k))
     assert 30 / (time.perf_counter() - start) > 50
+
+
+# -- bending walls (issue 23): the surfaces drawn as /saw/walls says -----------------------------
+
+FLAT = RenderOptions(texture=False)      # grey 175 behind the silicone (G 205): edges measurable
+
+
+def edge_v(img, u: int, v_lo: int, v_hi: int) -> float:
+    """
+    Return the bottom silicone's top edge in column u (px, v of the edge).
+
+    From the silicone's coverage (green: background 175, silicone 205) summed over rows
+    [v_lo, v_hi), a window that starts above the edge and ends inside the silicone.
+    """
+    g = img[v_lo:v_hi, u, 1].astype(float)
+    return v_hi - float(np.clip((g - 175.0) / (205.0 - 175.0), 0.0, 1.0).sum())
+
+
+def plateau(along, centre, height, half=0.01, ramp=0.01):
+    """Return ``height`` within ``half`` of ``centre``, falling linearly to 0 over ``ramp``."""
+    return height * np.clip((half + ramp - np.abs(along - centre)) / ramp, 0.0, 1.0)
+
+
+def test_walls_none_or_undeflected_draw_todays_frames_bit_for_bit():
+    s = Scenario()
+    along = np.linspace(-0.5, 1.0, 301)
+    zeros = (along, np.zeros((2, len(along))))
+    for options in (RenderOptions(), FLAT):
+        r = Renderer(s.robot, s.conditions.gap, CameraModel(), options)
+        for pose in (POSE, POSE._replace(phase=2.5, x=0.3)):
+            today = r.render(pose)
+            assert np.array_equal(r.render(pose, walls=None), today)
+            assert np.array_equal(r.render(pose, walls=zeros), today)
+    # Motion blur: every sub-frame takes the walls.
+    blur = Renderer(s.robot, s.conditions.gap, CameraModel(), RenderOptions(exposure=1 / 60))
+    moving = lambda t: POSE._replace(x=POSE.x + 0.06 * t)  # noqa: E731
+    assert np.array_equal(blur.render(moving(0.0), (), moving, 0.0, walls=zeros),
+                          blur.render(moving(0.0), (), moving, 0.0))
+    with pytest.raises(ValueError):
+        r.render(POSE, walls=(along, np.zeros(len(along))))          # one wall, not two
+    with pytest.raises(ValueError):
+        r.render(POSE, walls=(along[::-1], np.zeros((2, len(along)))))   # decreasing
+
+
+def test_bent_walls_move_their_edges_by_the_deflection_in_pixels():
+    """
+    A bump of the bottom wall away from the robot: its edge lower by the bump, there only.
+
+    OpenCV draws a horizontal polygon edge on whole rows (its anti-aliasing is along the edges'
+    slope: an edge at v = n + f, f < 0.5, covers the same rows as at v = n), so the camera sits
+    with the flat edge on a row (v integer) and the expected shift is the one of the rows the
+    moved edge falls on: 2.5 mm = 3 px at 1200 px/m, 3 mm = 3.6 px -> 4 rows.
+    """
+    s = Scenario()
+    cam = CameraModel(center_y=CameraModel().center_y - 0.5 / CameraModel().scale)
+    r = Renderer(s.robot, s.conditions.gap, cam, FLAT)
+    along = np.linspace(0.3, 0.9, 121)                     # 5 mm apart, as /saw/walls
+    xb = 0.6                                               # right of the robot (x 0.05)
+    v0 = cam.to_pixels(np.array([xb + 0j]))[0].imag        # the flat edge (y = 0)
+    assert v0 == pytest.approx(round(v0))
+    v_lo, v_hi = int(v0) - 8, int(v0) + 9                  # silicone at v_hi in both frames
+    u_b = int(round(cam.to_pixels(np.array([xb + 0j]))[0].real))
+    flat = r.render(POSE)
+    for height in (2.5e-3, 3e-3):
+        deflection = np.zeros((2, len(along)))
+        deflection[0] = plateau(along, xb, height)
+        bent = r.render(POSE, walls=(along, deflection))
+        # On the plateau (x within 1 cm of the bump's centre): moved by the rows to_pixels says.
+        for x in (xb - 0.008, xb - 0.003, xb, xb + 0.005, xb + 0.009):
+            u = int(round(cam.to_pixels(np.array([x + 0j]))[0].real))
+            x_col = cam.to_surface(np.array([u + v0 * 1j]))[0].real       # the column's x
+            v = cam.to_pixels(np.array([x_col - 1j * height]))[0].imag
+            moved = edge_v(bent, u, v_lo, v_hi) - edge_v(flat, u, v_lo, v_hi)
+            assert moved == pytest.approx(round(v) - round(v0), abs=0.05), (height, x, moved)
+        # On the ramps (1 cm each side): between flat and the plateau, rising towards it.
+        ramp = [edge_v(bent, u, v_lo, v_hi) - edge_v(flat, u, v_lo, v_hi)
+                for u in range(u_b - 22, u_b - 11)]
+        assert 0.0 <= min(ramp) and max(ramp) <= height * cam.scale + 0.5
+        assert ramp[-1] - ramp[0] > 0.6 * height * cam.scale
+        # Far from the bump (and beyond the samples) the edge stays where it was.
+        for x in (0.2, 0.4, 0.5, 0.7, 0.85):
+            u = int(round(cam.to_pixels(np.array([x + 0j]))[0].real))
+            far = edge_v(flat, u, v_lo, v_hi)
+            assert edge_v(bent, u, v_lo, v_hi) == pytest.approx(far, abs=0.05), x
+        # Only the bottom silicone changed: the top wall and the robot are the same pixels.
+        rows = np.flatnonzero((bent != flat).any(axis=(1, 2)))
+        t = r.options.silicone_thickness
+        assert rows.min() >= v0 - 2 and rows.max() <= v0 + (t + height) * cam.scale + 2, rows
+        columns = np.flatnonzero((bent != flat).any(axis=(0, 2)))
+        assert len(columns) < cam.width / 2
+    # The top wall bends the other way: its edge (y = gap) goes up by the deflection.
+    top = np.zeros((2, len(along)))
+    top[1] = plateau(along, xb, 2.5e-3)
+    up = r.render(POSE, walls=(along, top))
+    vt = int(round(cam.to_pixels(np.array([xb + 1j * s.conditions.gap]))[0].imag))
+
+    def cover(img):                 # silicone rows above the top wall's edge
+        return np.clip((img[vt - 12:vt + 8, u_b, 1] - 175.0) / 30.0, 0.0, 1.0).sum()
+    assert cover(flat) - cover(up) == pytest.approx(2.5e-3 * cam.scale, abs=0.1)
+
+
+def test_tips_dent_the_deflected_wall_not_the_flat_one():
+    """
+    The contact law's depth is against the deflected wall (docs/walls.md).
+
+    Walls pushed away further than any tip reaches (9 mm; the tips press up to 7.6 mm into the
+    flat silicone at POSE) show no dent: in every column of the bottom edge the robot does not
+    cover, the edge is where it is with the robot out of view. Flat, the dents show.
+    """
+    s = Scenario()
+    cam = CameraModel(center_y=CameraModel().center_y - 0.5 / CameraModel().scale)
+    r = Renderer(s.robot, s.conditions.gap, cam, FLAT)
+    along = np.linspace(-0.4, 1.0, 281)
+    pushed = (along, np.full((2, len(along)), 9e-3))
+    away = POSE._replace(x=5.0)                      # the robot out of view
+    flat, bent = r.render(POSE), r.render(POSE, walls=pushed)
+    flat_alone, bent_alone = r.render(away), r.render(away, walls=pushed)
+    v0 = int(round(cam.to_pixels(np.array([0j]))[0].imag))
+    win = {'flat': (v0 - 4, v0 + 10), 'bent': (v0 + 5, v0 + 20)}   # around each edge
+
+    def silicone_only(img, u, lo, hi):
+        """Only background and silicone in the window: a blend c of (175,) * 3 and SILICONE."""
+        bgr = img[lo:hi, u].astype(float)
+        c = (bgr[:, 1] - 175.0) / 30.0
+        return bool(np.all(np.abs(bgr[:, 0] - 175.0 - 25.0 * c) <= 1.5)
+                    and np.all(np.abs(bgr[:, 2] - 175.0 - 35.0 * c) <= 1.5))
+
+    columns = [u for u in range(cam.width)
+               if silicone_only(flat, u, *win['flat']) and silicone_only(bent, u, *win['bent'])]
+    assert len(columns) > cam.width * 0.8
+    dented = [u for u in columns if abs(edge_v(flat, u, *win['flat'])
+                                        - edge_v(flat_alone, u, *win['flat'])) > 0.3]
+    assert len(dented) >= 5                           # flat: dents beside the links
+    moved = [edge_v(bent, u, *win['bent']) - edge_v(bent_alone, u, *win['bent'])
+             for u in columns]
+    assert np.abs(moved).max() < 0.05                 # bent 9 mm: none
+    u = columns[0]
+    assert edge_v(bent_alone, u, *win['bent']) - edge_v(flat_alone, u, *win['flat']) == \
+        pytest.approx(round(9e-3 * cam.scale), abs=0.05)
+
+
+def test_stamped_shapes_give_the_last_recent_shape_at_or_before_a_time():
+    ms = 1_000_000
+    shapes = StampedShapes(keep_ns=2000 * ms, stale_ns=250 * ms)
+    assert shapes.before(0) is None                       # none yet: flat
+    a = wall_shape([0.0, 1.0], [[0.0, 0.0], [0.0, 0.0]])
+    b = wall_shape([0.0, 1.0], [[1e-3, 0.0], [0.0, 1e-3]])
+    shapes.add(100 * ms, a)
+    shapes.add(116 * ms, b)
+    assert shapes.before(99 * ms) is None                 # before the first one: flat
+    assert shapes.before(100 * ms) is a and shapes.before(115 * ms) is a
+    assert shapes.before(116 * ms) is b and shapes.before(300 * ms) is b
+    assert shapes.before(400 * ms) is None                # no shape for 0.28 s: stale, flat
+    for k in range(200):                                  # 60 Hz for 3.3 s: 2 s kept
+        shapes.add(200 * ms + k * 16 * ms, a)
+    assert shapes.t[-1] - shapes.t[0] <= 2000 * ms
+    shapes.add(50 * ms, b)                                # time went back: a restart
+    assert shapes.t == [50 * ms] and shapes.before(60 * ms) is b

@@ -4,7 +4,10 @@ The camera node: a virtual 60 fps side-view camera of the simulated robot.
 Subscribes /saw/pose (PoseStamped) and /saw/joint_states (JointState, ``helix`` = wave phase) and
 renders one frame for every 1/fps s of SIMULATED time, stamped with that time: frame k is drawn
 once both streams have reached t_k + exposure / 2 (poses are interpolated between samples), and
-no frame is ever skipped, however late. Publishes /saw/camera/image_raw (sensor_msgs/Image, bgr8),
+no frame is ever skipped, however late. With bending walls the simulator also publishes their
+shape on /saw/walls (PointCloud2): each frame draws the surfaces bent as the last shape received
+stamped at or before its time says (flat while none has come, as with rigid walls, which publish
+none). Publishes /saw/camera/image_raw (sensor_msgs/Image, bgr8),
 /saw/camera/image_raw/compressed (sensor_msgs/CompressedImage, JPEG as image_transport's
 ``compressed`` plugin: ``image_transport`` chooses raw, compressed or both) and
 /saw/camera/camera_info (sensor_msgs/CameraInfo: K, P of the rendering, no distortion), all with
@@ -35,21 +38,25 @@ from rclpy.serialization import serialize_message
 from saw_ros.core.params import ParameterError, Scenario, spec_entries, spec_meta
 from saw_ros.interface import topics
 from saw_ros.ros import cdr
+from saw_ros.ros import conversions as conv
 from saw_ros.ros import tf
 from saw_ros.ros.cdr import NS_PER_S
 from saw_ros.ros.params import declare_spec, ScenarioParameters, yaml_text
-from saw_ros.ros.qos import image_publisher_qos, INPUT_DEPTH, STREAM_QOS, with_depth
+from saw_ros.ros.qos import (image_publisher_qos, INPUT_DEPTH, message_class, profile,
+                             STREAM_QOS, with_depth)
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 from saw_ros.ros.simulator_parameters import SimulatorParameters
 from saw_ros.vision import compressed, one_opencv_thread
 from saw_ros.vision.camera import CameraModel, FPS
-from saw_ros.vision.frames import pose_between, Renderer, RenderOptions, RobotPose, StampedSeries
+from saw_ros.vision.frames import (pose_between, Renderer, RenderOptions, RobotPose,
+                                   StampedSeries, StampedShapes, wall_shape)
 from saw_ros.vision.video import VideoError, VideoWriter
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image, JointState
 
 TRANSPORTS = ('raw', 'compressed', 'both')
-KEEP = 2.0          # s of simulated time kept in the pose buffers
+KEEP = 2.0          # s of simulated time kept in the pose and wall-shape buffers
+WALLS_STALE = 0.25  # s after which a wall shape no longer counts (at least 3 publishing periods)
 SIMULATOR_WAIT = 1.0  # s after the inputs matched that readiness waits for the simulator's values
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)
 
@@ -177,9 +184,11 @@ class CameraNode(Node):
         self.offset = 0.0          # m the camera moved along the track (follow)
         self._poses = StampedSeries(int(KEEP * NS_PER_S))       # (x, y, theta)
         self._phases = StampedSeries(int(KEEP * NS_PER_S))      # (helix phase,)
+        self._walls = StampedShapes(int(KEEP * NS_PER_S), int(WALLS_STALE * NS_PER_S))
+        self._walls_refused = False    # the last /saw/walls cloud was refused (warned)
         self._next = None          # index of the next frame
         self.frames = 0
-        self.received = {'poses': 0, 'joint_states': 0}
+        self.received = {'poses': 0, 'joint_states': 0, 'walls': 0}
         self.busy = {'render': 0.0, 'publish': 0.0, 'jpeg': 0.0, 'video': 0.0}  # wall s/stage
         self.raw = p['image_transport'] in ('raw', 'both')
         self.jpeg_quality = int(p['jpeg_quality']) \
@@ -219,6 +228,11 @@ class CameraNode(Node):
                                      raw=True),
             self.create_subscription(JointState, p['joint_states_topic'], self._on_joints_raw,
                                      in_qos, raw=True))
+        # The bending walls' shape: optional (rigid walls publish none), so not an input the
+        # readiness waits for.
+        walls = topics.topic(topics.WALLS)
+        self._walls_sub = self.create_subscription(message_class(walls.type), walls.name,
+                                                   self._on_walls, profile(walls.qos))
         # 'inputs matched' once both inputs have a publisher: from then on no input is missed
         # (said ready on /saw/ready: run_pipeline waits for it before letting the simulator start).
         self._readiness = Readiness(self)
@@ -295,6 +309,20 @@ class CameraNode(Node):
             self._restart()
         self._render_due()
 
+    def _on_walls(self, msg) -> None:
+        """Keep a /saw/walls shape by its stamp; refuse (one warning a streak) what is not one."""
+        try:
+            shape = wall_shape(*conv.walls_of(msg))
+        except ValueError as exc:
+            if not self._walls_refused:
+                self._walls_refused = True
+                self.get_logger().warning(f'ignoring a {topics.WALLS} cloud (and the next ones '
+                                          f'until one is right): {exc}')
+            return
+        self._walls_refused = False
+        self.received['walls'] += 1
+        self._walls.add(conv.stamp_ns(msg.header.stamp), shape)
+
     def _restart(self) -> None:
         self.get_logger().warning('input time went backwards: restarting the frame clock')
         self._next = None
@@ -319,7 +347,8 @@ class CameraNode(Node):
                 self._follow(t_ns)
             t0 = time.perf_counter()
             frame = self.renderer.render(self.pose_at(t_ns), (),
-                                         lambda t: self.pose_at(t * NS_PER_S), t_ns / NS_PER_S)
+                                         lambda t: self.pose_at(t * NS_PER_S), t_ns / NS_PER_S,
+                                         self._walls.before(t_ns))
             self.busy['render'] += time.perf_counter() - t0
             self._output(frame, t_ns)
             self._next += 1
