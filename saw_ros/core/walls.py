@@ -258,6 +258,21 @@ class Walls:
         depth.ravel()[flat] = dk - w
         return depth
 
+    def shape(self, x_tips: np.ndarray, samples: np.ndarray) -> np.ndarray:
+        """
+        Return each wall's deflection (S, 2, m) at abscissae ``samples`` (m), from the forces.
+
+        Bottom first, top second; > 0 away from the robot. Rigid scenarios: zeros.
+        """
+        out = np.zeros((len(self.beta), 2, len(samples)))
+        xs = self._by_surface(x_tips)
+        forces = self.forces
+        for i in np.flatnonzero(self.active):
+            for k in range(2):
+                r = samples[:, None] - xs[i, k][None, :]
+                out[i, k] = self.gain[i] * _patch(r, self.beta[i], self.half[i]) @ forces[i, k]
+        return out
+
     def _balance(self, dk: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.ndarray,
                  constants: List[Any]) -> Tuple[np.ndarray, np.ndarray]:
         """

@@ -209,3 +209,17 @@ def test_over_a_run_the_work_done_on_the_walls_is_the_energy_they_store():
     stored = 0.5 * f0 @ field(x0, x0, f0)
     assert stored > 1e-3                                      # J: the walls hold some
     assert abs(work - stored) < 2e-3 * done                   # of all the work done on them
+
+
+def test_the_published_shape_is_the_deflection_under_the_tips():
+    sim = Simulator(SHEET)
+    for _ in range(300):
+        sim.step()
+    tips = sim._x[0]
+    shape = sim.walls.shape(sim._x, np.sort(tips))[0]         # (2, P) sampled where tips are
+    order = np.argsort(tips)
+    under = sim.walls.deflection[0][order]                      # each tip on its own wall
+    side = sim.table.side[order]
+    assert shape[0][side < 0] == pytest.approx(under[side < 0], abs=1e-12)
+    assert shape[1][side > 0] == pytest.approx(under[side > 0], abs=1e-12)
+    assert shape.max() > 5e-4
