@@ -177,6 +177,7 @@ class Simulator:
                       if any(s.surface.foundation_stiffness > 0.0 for s in scenarios) else None)
         self._max_penetration_any = float(self._max_penetration.min())
         gap = np.array([[s.conditions.gap] for s in scenarios])
+        self._gap = gap[:, 0]
         side = self.table.side
         # penetration = side * (y - level): top surface at y = gap, bottom at y = 0.
         self._level = np.where(side > 0, gap, 0.0) * side           # (S, P)
@@ -407,7 +408,8 @@ class Simulator:
         # One dot product bounds every speed and catches NaN (the comparison is then False).
         speed = q[3:]
         if not np.vdot(speed, speed) <= MAX_SPEED ** 2 or \
-                pen.max() > self._max_penetration_any:
+                pen.max() > self._max_penetration_any or \
+                (self.walls is not None and (self.walls.largest > self._gap).any()):
             self._check_divergence()
 
     @property
@@ -444,6 +446,18 @@ class Simulator:
                 f'{self._max_penetration[i] * 1000:.1f} mm (the robot was pushed through the '
                 f'surface: check the slope, resisting force and stiffness, or reduce '
                 f'integration.dt)')
+        if self.walls is not None:
+            # A wall that gives way by more than the gap is no longer a wall of the channel
+            # (nor a small deflection of a beam on its foundation): refused, not simulated.
+            i = int(np.argmax(self.walls.largest - self._gap))
+            if self.walls.largest[i] > self._gap[i]:
+                surface = self.scenarios[i].surface
+                raise DivergenceError(
+                    f'simulation diverged at t = {t:.3f} s (scenario {i}): a wall gave way by '
+                    f'{self.walls.largest[i] * 1000:.0f} mm, more than the gap of '
+                    f'{self._gap[i] * 1000:.0f} mm: walls this soft do not hold the robot '
+                    f'(surface.foundation_stiffness = {surface.foundation_stiffness:g} N/m^2, '
+                    f'surface.bending_stiffness = {surface.bending_stiffness:g} N m^2)')
 
     def run(self, duration: float, record_every: int = 1,
             progress: Optional[Callable[[int], None]] = None,

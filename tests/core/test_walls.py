@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from saw_ros.core import walls as walls_module
-from saw_ros.core.dynamics import Simulator
+from saw_ros.core.dynamics import DivergenceError, Simulator
 from saw_ros.core.params import ParameterError, Scenario
 from saw_ros.core.walls import deflection, finite_difference_deflection, point_deflection, Walls
 from saw_ros.core.walls import TOLERANCE
@@ -223,3 +223,14 @@ def test_the_published_shape_is_the_deflection_under_the_tips():
     assert shape[0][side < 0] == pytest.approx(under[side < 0], abs=1e-12)
     assert shape[1][side > 0] == pytest.approx(under[side > 0], abs=1e-12)
     assert shape.max() > 5e-4
+
+
+def test_walls_too_soft_to_hold_the_robot_are_refused_with_the_reason():
+    # 100 N/m^2 and almost no bending stiffness: the linear wall would give way by a metre.
+    sim = Simulator(Scenario().with_values({'surface.foundation_stiffness': 100.0,
+                                            'surface.bending_stiffness': 1e-9}))
+    with pytest.raises(DivergenceError, match=r'a wall gave way by \d+ mm, more than the gap '
+                                              r'of 45 mm: walls this soft do not hold'):
+        for _ in range(2000):
+            sim.step()
+    assert sim.walls.largest.max() <= 2 * 0.045          # refused as soon as it went past
