@@ -451,13 +451,13 @@ class Simulator:
             # (nor a small deflection of a beam on its foundation): refused, not simulated.
             i = int(np.argmax(self.walls.largest - self._gap))
             if self.walls.largest[i] > self._gap[i]:
-                surface = self.scenarios[i].surface
+                wall = self.scenarios[i].surface
                 raise DivergenceError(
                     f'simulation diverged at t = {t:.3f} s (scenario {i}): a wall gave way by '
                     f'{self.walls.largest[i] * 1000:.0f} mm, more than the gap of '
                     f'{self._gap[i] * 1000:.0f} mm: walls this soft do not hold the robot '
-                    f'(surface.foundation_stiffness = {surface.foundation_stiffness:g} N/m^2, '
-                    f'surface.bending_stiffness = {surface.bending_stiffness:g} N m^2)')
+                    f'(surface.foundation_stiffness = {wall.foundation_stiffness:g} N/m^2, '
+                    f'surface.bending_stiffness = {wall.bending_stiffness:g} N m^2)')
 
     def run(self, duration: float, record_every: int = 1,
             progress: Optional[Callable[[int], None]] = None,
