@@ -287,7 +287,8 @@ class Walls:
         mean, half, rate, p = constants
         rows = np.arange(len(dk))                            # the walls still iterating
         solved, loads = np.empty_like(w), np.empty_like(w)
-        compliant = self._compliant
+        # The convergence test's scale, p times twice each tip's own compliance (see below).
+        scale = p * self._compliant
         eye = self._eyes[dk.shape[1]]
         # The law's kinks in the depth: leaving its hysteresis band on either side (loading or
         # unloading faster than hysteresis_speed), and contact.
@@ -336,7 +337,7 @@ class Walls:
             left += loading + loading                          # F'' / (p delta^(p-1))
             left *= root
             left *= step * step
-            left *= p * compliant[rows]
+            left *= scale
             done = left.max(axis=1) < TOLERANCE
             if kinked:
                 done &= fraction == 1.0
@@ -348,6 +349,7 @@ class Walls:
                 rows, dk, w, g = rows[going], dk[going], w[going], g[going]
                 before, force = before[going], force[going]
                 kinks = kinks[:, going]
+                scale = scale[going]
                 mean, half, rate, p = (v[going] if isinstance(v, np.ndarray) else v
                                        for v in (mean, half, rate, p))
         self.iterations += iteration + 1

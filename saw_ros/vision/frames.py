@@ -356,7 +356,9 @@ class Renderer:
         between the samples and flat beyond them. None (the default), or all zeros: flat
         surfaces, the same pixels as ever.
         """
-        shape = None if walls is None else wall_shape(*walls)
+        # A WallShape has been checked already (the camera node checks each cloud once).
+        shape = walls if walls is None or isinstance(walls, WallShape) else \
+            wall_shape(*walls)
         opt, scene = self.options, self.scene
         cam = self.camera
         t_frame = 0.0 if t is None else t
