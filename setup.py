@@ -5,7 +5,7 @@ from setuptools import find_packages, setup
 
 package_name = 'saw_ros'
 NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'player', 'video_source',
-         'speed_controller')
+         'speed_controller', 'foxglove_bridge')
 
 setup(
     name=package_name,

@@ -41,7 +41,8 @@ if [ "$(cat "$VENV/.saw_ros_stamp" 2>/dev/null)" != "$(stamp_of)" ]; then
   # pip ignores setup.cfg's script_dir: put the executables where `ros2 run` looks,
   # <prefix>/lib/saw_ros/<exe> (the venv is laid out like a ROS install prefix).
   mkdir -p "$VENV/lib/saw_ros" "$VENV/share/ament_index/resource_index/packages" "$VENV/share/saw_ros"
-  for exe in simulator camera vision comparison recorder player video_source speed_controller; do
+  for exe in simulator camera vision comparison recorder player video_source speed_controller \
+      foxglove_bridge; do
     ln -sf "../../bin/$exe" "$VENV/lib/saw_ros/$exe"
   done
   # Editable installs skip data_files: the ament index marker and package.xml, by hand.

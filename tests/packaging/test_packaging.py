@@ -217,7 +217,7 @@ def test_simulator_yaml_lists_every_parameter_with_the_core_defaults():
 
 
 @pytest.mark.parametrize('node', ['simulator', 'camera', 'vision', 'comparison', 'recorder',
-                                  'player', 'speed_controller'])
+                                  'player', 'speed_controller', 'foxglove_bridge'])
 def test_msg_config_yaml_is_generated_from_the_parameter_definitions(node, tmp_path):
     """
     Every node's msg_config/<node>.yaml is generated from its parameter definitions.

@@ -14,7 +14,7 @@ import sys
 from saw_ros.ros.runtime import take_stop_signals
 
 EXECUTABLES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'player',
-               'video_source', 'speed_controller')
+               'video_source', 'speed_controller', 'foxglove_bridge')
 
 
 def starting_as_executable(argv0: str) -> bool:
