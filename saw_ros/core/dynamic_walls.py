@@ -1,0 +1,312 @@
+"""
+Walls with mass and damping (issue 31): the beam on its Winkler foundation made dynamic.
+
+core.walls keeps each surface quasi-static: EI w'''' + k w = q. With the wall's own mass m per
+metre (kg/m, the strip and what moves with it) and a viscous foundation c (N s/m^2):
+
+    m w_tt + c w_t + EI w'''' + k w = q(x, t),        w > 0 away from the robot.
+
+Formulation (docs/walls.md says why): the exact quasi-static wall of core.walls (Hetenyi's
+infinite beam, closed form) plus a dynamic correction carried by the modes of a periodic band of
+wall BAND_LENGTH long, the mode-acceleration method of structural dynamics. Mode n (wavenumber
+kappa_n = 2 pi n / BAND_LENGTH, complex amplitude z_n, w = Re sum z_n exp(i kappa_n x)) is an
+oscillator
+
+    m z_n'' + c z_n' + K_n z_n = g_n,    K_n = EI kappa_n^4 + k,
+    g_n = weight_n sinc(kappa_n b / 2) sum_j F_j exp(-i kappa_n x_j)
+
+(weight 1 / BAND_LENGTH for n = 0, 2 / BAND_LENGTH else; the tips' loads F_j spread over the
+contact width b), stepped exactly over dt with its load held (the 2 x 2 matrix exponential of
+each mode: unconditionally stable at any stiffness, no numerical damping). The wall is
+
+    w(x) = w_quasi_static(F)(x) + Re sum_n (z_n - g_n / K_n) exp(i kappa_n x):
+
+the modes carry only what the wall's inertia and damping add to the quasi-static shape. With
+m = 0 the correction is exactly zero (z_n = g_n / K_n) and the wall is core.walls' to the digit:
+the massless limit is the quasi-static wall by construction. The modes beyond the band's last
+keep their quasi-static share (the closed form holds all of it), so the truncation costs only
+the dynamic correction of wavenumbers far beyond the foundation's beta = (k / 4 EI)^(1/4).
+
+Coupling (used when the step is coupled): with the loads held at their step-end values, the
+deflection at the tips after the step is linear in them, w = free + G F, G = G_quasi_static - H,
+H_ij = sum_n Phi00_n weight_n sinc_n / K_n cos(kappa_n (x_i - x_j)) (``DynamicWall.compliance``),
+so the same Newton solve as core.walls balances it with the contact law.
+
+Kernels: numba-compiled loops over plain arrays into preallocated outputs (the compiled core's
+style); the class holds the state and the constants.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, cast, Tuple, TypeVar
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike
+
+from saw_ros.core.walls import deflection as quasi_static_deflection
+
+# The band: a periodic wall 2 m long, far longer than the decay length 1 / beta (about 1 cm for
+# the walls of docs/walls.md) and than the robot (0.35 m): its images are 2 m away. 512 modes
+# reach kappa = 1608 /m, 14 to 18 times beta for the sheet and the tissue set, where a moving
+# load's correction has fallen as kappa^-6 (tests/core/test_dynamic_walls.py measures it).
+BAND_LENGTH = 2.0
+BAND_MODES = 512
+
+Function = TypeVar('Function', bound=Callable[..., Any])
+
+
+def compiled(function: Function) -> Function:
+    """Return ``function`` compiled by numba (nopython, cached on disk), typed for mypy."""
+    return cast(Function, numba.njit(cache=True)(function))
+
+
+@compiled
+def _project(forces: np.ndarray, x: np.ndarray, kappa1: float, shape: np.ndarray,
+             out_re: np.ndarray, out_im: np.ndarray) -> None:
+    """g_n = shape_n sum_j F_j exp(-i kappa_n x_j), kappa_n = n kappa1, into out_re, out_im."""
+    for n in range(shape.size):
+        out_re[n] = 0.0
+        out_im[n] = 0.0
+    for j in range(forces.size):
+        f = forces[j]
+        if f == 0.0:
+            continue
+        c1 = math.cos(kappa1 * x[j])
+        s1 = math.sin(kappa1 * x[j])
+        c = 1.0
+        s = 0.0
+        for n in range(shape.size):
+            out_re[n] += f * c
+            out_im[n] -= f * s
+            c, s = c * c1 - s * s1, s * c1 + c * s1
+    for n in range(shape.size):
+        out_re[n] *= shape[n]
+        out_im[n] *= shape[n]
+
+
+@compiled
+def _advance(g_re: np.ndarray, g_im: np.ndarray, stiffness: np.ndarray, phi: np.ndarray,
+             z_re: np.ndarray, z_im: np.ndarray, v_re: np.ndarray, v_im: np.ndarray) -> None:
+    """Step every mode exactly over dt with its load g held: (z - g/K, v) <- Phi (z - g/K, v)."""
+    for n in range(stiffness.size):
+        rest_re = g_re[n] / stiffness[n]
+        rest_im = g_im[n] / stiffness[n]
+        u_re = z_re[n] - rest_re
+        u_im = z_im[n] - rest_im
+        z_re[n] = rest_re + phi[0, n] * u_re + phi[1, n] * v_re[n]
+        z_im[n] = rest_im + phi[0, n] * u_im + phi[1, n] * v_im[n]
+        v_re[n] = phi[2, n] * u_re + phi[3, n] * v_re[n]
+        v_im[n] = phi[2, n] * u_im + phi[3, n] * v_im[n]
+
+
+@compiled
+def _synthesise(a_re: np.ndarray, a_im: np.ndarray, kappa1: float, x: np.ndarray,
+                out: np.ndarray) -> None:
+    """out_i = Re sum_n a_n exp(i kappa_n x_i), kappa_n = n kappa1."""
+    for i in range(x.size):
+        c1 = math.cos(kappa1 * x[i])
+        s1 = math.sin(kappa1 * x[i])
+        c = 1.0
+        s = 0.0
+        total = 0.0
+        for n in range(a_re.size):
+            total += a_re[n] * c - a_im[n] * s
+            c, s = c * c1 - s * s1, s * c1 + c * s1
+        out[i] = total
+
+
+@compiled
+def _held_compliance(x: np.ndarray, kappa1: float, gain: np.ndarray, out: np.ndarray) -> None:
+    """out_ij = sum_n gain_n cos(kappa_n (x_i - x_j)): what the held loads' modes take back."""
+    for i in range(x.size):
+        for j in range(i, x.size):
+            r = kappa1 * (x[i] - x[j])
+            c1 = math.cos(r)
+            s1 = math.sin(r)
+            c = 1.0
+            s = 0.0
+            total = 0.0
+            for n in range(gain.size):
+                total += gain[n] * c
+                c, s = c * c1 - s * s1, s * c1 + c * s1
+            out[i, j] = total
+            out[j, i] = total
+
+
+def mode_propagator(stiffness: np.ndarray, mass: float, damping: float,
+                    dt: float) -> np.ndarray:
+    """
+    Return Phi (4, N): the exact step over ``dt`` of m u'' + c u' + K u = 0, per mode.
+
+    Rows Phi00, Phi01, Phi10, Phi11 of exp(A dt), A = [[0, 1], [-K/m, -c/m]]: with the mean
+    eigenvalue l = -c / 2m and d = sqrt(l^2 - K/m), exp(A t) = exp(l t) (cosh(d t) I +
+    sinh(d t) / d (A - l I)), from the two exponentials exp((l +- d) t) so that stiff,
+    overdamped modes do not overflow. A massless wall has no dynamics: all zeros.
+    """
+    k = np.asarray(stiffness, float)
+    if mass == 0.0:
+        return np.zeros((4, k.size))
+    mean = -damping / (2.0 * mass)
+    split = np.sqrt(complex(mean * mean) - k / mass + 0j)
+    e1, e2 = np.exp((mean + split) * dt), np.exp((mean - split) * dt)
+    even = (e1 + e2) / 2.0                                # exp(l t) cosh(d t)
+    small = np.abs(split * dt) < 1e-6
+    odd = np.where(small, dt * np.exp(mean * dt),         # exp(l t) sinh(d t) / d
+                   (e1 - e2) / (2.0 * np.where(small, 1.0, split)))
+    phi = np.empty((4, k.size))
+    phi[0] = (even - mean * odd).real
+    phi[1] = odd.real
+    phi[2] = (-k / mass * odd).real
+    phi[3] = (even + (-damping / mass - mean) * odd).real
+    return phi
+
+
+class DynamicWall:
+    """
+    One wall with mass and damping (module docstring), stepped under loads held over each step.
+
+    ``foundation`` k N/m^2, ``bending`` EI N m^2, ``width`` b m (the contact width), ``mass``
+    m kg/m, ``damping`` c N s/m^2, ``dt`` s.
+    """
+
+    def __init__(self, foundation: float, bending: float, width: float, mass: float,
+                 damping: float, dt: float, length: float = BAND_LENGTH,
+                 modes: int = BAND_MODES):
+        if foundation <= 0.0 or bending <= 0.0 or width <= 0.0 or dt <= 0.0:
+            raise ValueError('a dynamic wall needs k, EI, b and dt > 0')
+        if mass < 0.0 or damping < 0.0:
+            raise ValueError("a wall's mass and damping are >= 0")
+        self.foundation, self.bending, self.width = foundation, bending, width
+        self.mass, self.damping, self.dt, self.length = mass, damping, dt, length
+        self.kappa1 = 2.0 * math.pi / length
+        kappa = self.kappa1 * np.arange(modes)
+        self.stiffness = bending * kappa ** 4 + foundation            # K_n, N/m^2
+        weight = np.full(modes, 2.0 / length)
+        weight[0] = 1.0 / length
+        # weight_n sinc(kappa_n b / 2) (np.sinc(u) is sin(pi u) / (pi u))
+        self.shape = weight * np.sinc(kappa * width / (2.0 * math.pi))
+        self.phi = mode_propagator(self.stiffness, mass, damping, dt)
+        # What a newton held at a tip puts into each mode's correction after the step, m/N:
+        # the correction z - g/K starts the step at -g/K (compliance).
+        self._held_gain = self.phi[0] * self.shape / self.stiffness
+        self.z_re, self.z_im = np.zeros(modes), np.zeros(modes)      # m
+        self.v_re, self.v_im = np.zeros(modes), np.zeros(modes)      # m/s
+        self.g_re, self.g_im = np.zeros(modes), np.zeros(modes)      # the held loads, N/m
+        self.loads = np.zeros(0)                                      # N
+        self.at = np.zeros(0)                                         # m
+        self.work = 0.0           # done by the loads on the band's modes, J
+        self.dissipated = 0.0     # in the foundation's damping (trapezoid in time), J
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Return each mode's share of the band in its energy: L for n = 0, L / 2 else (m)."""
+        out = np.full(self.stiffness.size, self.length / 2.0)
+        out[0] = self.length
+        return out
+
+    def step(self, loads: ArrayLike, at: ArrayLike) -> None:
+        """Advance one dt under the tips' ``loads`` (N, > 0 away) held at ``at`` (m)."""
+        self.loads = np.array(loads, float)
+        self.at = np.array(at, float)
+        z_re, z_im = self.z_re.copy(), self.z_im.copy()
+        power_before = self._dissipation_rate()
+        _project(self.loads, self.at, self.kappa1, self.shape, self.g_re, self.g_im)
+        if self.mass == 0.0:                # no dynamics: the modes follow their loads at once
+            np.divide(self.g_re, self.stiffness, out=self.z_re)
+            np.divide(self.g_im, self.stiffness, out=self.z_im)
+        else:
+            _advance(self.g_re, self.g_im, self.stiffness, self.phi, self.z_re, self.z_im,
+                     self.v_re, self.v_im)
+        # The work of a load held over the step on an exactly stepped mode: g . dz, per mode.
+        self.work += float(self.weights @ (self.g_re * (self.z_re - z_re)
+                                           + self.g_im * (self.z_im - z_im)))
+        self.dissipated += 0.5 * self.dt * (power_before + self._dissipation_rate())
+
+    def _dissipation_rate(self) -> float:
+        return float(self.damping * (self.weights @ (self.v_re ** 2 + self.v_im ** 2)))
+
+    def energy(self) -> float:
+        """Return the band's energy, J: kinetic, bending and foundation, mode by mode."""
+        kinetic = self.mass * (self.v_re ** 2 + self.v_im ** 2)
+        elastic = self.stiffness * (self.z_re ** 2 + self.z_im ** 2)
+        return float(self.weights @ (kinetic + elastic) / 2.0)
+
+    def correction(self, x: ArrayLike) -> np.ndarray:
+        """Return what the wall's mass and damping add to its quasi-static shape at ``x``, m."""
+        x = np.atleast_1d(np.asarray(x, float))
+        out = np.empty(x.size)
+        _synthesise(self.z_re - self.g_re / self.stiffness, self.z_im - self.g_im / self.stiffness,
+                    self.kappa1, x, out)
+        return out
+
+    def deflection(self, x: ArrayLike) -> np.ndarray:
+        """Return the wall's deflection at ``x`` (m, > 0 away from the robot) after the step."""
+        x = np.atleast_1d(np.asarray(x, float))
+        out = self.correction(x)
+        for load, centre in zip(self.loads, self.at):
+            out += quasi_static_deflection(x - centre, load, self.foundation, self.bending,
+                                           self.width)
+        return out
+
+    def free_deflection(self, x: ArrayLike) -> np.ndarray:
+        """
+        Return the correction at ``x`` after a step under no loads (m): the free part of w.
+
+        The deflection after a step under loads F held at ``x`` is this plus
+        ``compliance(x) @ F`` (module docstring).
+        """
+        x = np.atleast_1d(np.asarray(x, float))
+        out = np.empty(x.size)
+        _synthesise(self.phi[0] * self.z_re + self.phi[1] * self.v_re,
+                    self.phi[0] * self.z_im + self.phi[1] * self.v_im, self.kappa1, x, out)
+        return out
+
+    def compliance(self, x: ArrayLike) -> np.ndarray:
+        """Return G (m, m), m/N: the deflection at x_i after the step per newton held at x_j."""
+        x = np.atleast_1d(np.asarray(x, float))
+        r = x[:, None] - x[None, :]
+        g = quasi_static_deflection(r, 1.0, self.foundation, self.bending, self.width)
+        held = np.empty((x.size, x.size))
+        _held_compliance(x, self.kappa1, self._held_gain, held)
+        return g - held
+
+
+def critical_speed(foundation: float, bending: float, mass: float) -> float:
+    """Return where an undamped wall resonates under a moving load, (4 k EI / m^2)^(1/4), m/s."""
+    return float((4.0 * foundation * bending / mass ** 2) ** 0.25)
+
+
+def ring_down(foundation: float, mass: float, damping: float) -> Tuple[float, float]:
+    """Return a uniform free vibration's (angular frequency, decay rate), rad/s and 1/s."""
+    decay = damping / (2.0 * mass)
+    return math.sqrt(foundation / mass - decay ** 2), decay
+
+
+def moving_load_deflection(xi: ArrayLike, load: float, speed: float, foundation: float,
+                           bending: float, mass: float, damping: float) -> np.ndarray:
+    """
+    Return the steady deflection (m) under a point load moving at ``speed`` (m/s), at xi = x - v t.
+
+    The closed form of an infinite beam on a damped Winkler foundation (Fryba, *Vibration of
+    Solids and Structures under Moving Loads*, 1972/1999, ch. 6): in the load's frame
+    EI W'''' + m v^2 W'' - c v W' + k W = P delta(xi), solved by the roots s of
+    EI s^4 + m v^2 s^2 - c v s + k = 0, the two with Re s < 0 ahead of the load (xi > 0), the
+    two with Re s > 0 behind it, joined at the load by W, W', W'' continuous and
+    EI [W'''] = P. At rest it is Hetenyi's P beta / 2k exp(-beta |xi|) (cos + sin)(beta |xi|).
+    """
+    roots = np.roots([bending, 0.0, mass * speed ** 2, -damping * speed, foundation])
+    ahead, behind = roots[roots.real < 0.0], roots[roots.real > 0.0]
+    if len(ahead) != 2 or len(behind) != 2:
+        raise ValueError(f'no steady deflection at {speed:g} m/s without damping: the critical '
+                         f'speed {critical_speed(foundation, bending, mass):g} m/s')
+    a = np.array([[s ** p for s in ahead] + [-(s ** p) for s in behind] for p in range(4)])
+    amplitudes = np.linalg.solve(a, np.array([0.0, 0.0, 0.0, load / bending], complex))
+    xi = np.asarray(xi, float)
+    out = np.zeros(xi.shape, complex)
+    front = xi >= 0.0
+    for amplitude, s in zip(amplitudes[:2], ahead):
+        out[front] += amplitude * np.exp(s * xi[front])
+    for amplitude, s in zip(amplitudes[2:], behind):
+        out[~front] += amplitude * np.exp(s * xi[~front])
+    return out.real
