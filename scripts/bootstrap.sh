@@ -50,12 +50,19 @@ if [ "$(cat "$VENV/.saw_ros_stamp" 2>/dev/null)" != "$(stamp_of)" ]; then
   ln -sf "$ROOT/package.xml" "$VENV/share/saw_ros/package.xml"    # a link: never stale
   ln -sfn "$ROOT/msg_config" "$VENV/share/saw_ros/msg_config"
   # ...and setup.py's other data_files, the same layout as a colcon install.
-  ln -sfn "$ROOT/launch" "$VENV/share/saw_ros/launch"
   ln -sfn "$ROOT/urdf" "$VENV/share/saw_ros/urdf"
   mkdir -p "$VENV/share/saw_ros/viewers"
   ln -sf "$ROOT/docs/saw_ros.rviz" "$ROOT/docs/foxglove_layout.json" "$VENV/share/saw_ros/viewers/"
   stamp_of > "$VENV/.saw_ros_stamp"
 fi
+
+# The launch files as a folder of links, not a link to the folder: ros2launch looks for
+# saw.launch.py by walking share/saw_ros, which does not enter links to folders ("file
+# 'saw.launch.py' was not found in the share directory"). Outside the stamp's block: venvs made
+# before this have the folder link.
+[ ! -L "$VENV/share/saw_ros/launch" ] || rm "$VENV/share/saw_ros/launch"
+mkdir -p "$VENV/share/saw_ros/launch"
+ln -sf "$ROOT"/launch/*.launch.py "$VENV/share/saw_ros/launch/"
 
 # tf2_msgs (for /tf, /tf_static) is not among the ROS wheels: built into the venv, once.
 "$ROOT/scripts/build_tf2_msgs.sh" "$VENV"
