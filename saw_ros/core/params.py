@@ -336,6 +336,41 @@ class MotorParams(_Validated):
 
 
 @dataclass(frozen=True)
+class WallDynamicsParams(_Validated):
+    """
+    Walls with mass and damping (issue 31, core.dynamic_walls, docs/walls.md).
+
+    Not yet a Scenario section: the compiled step does not couple them yet, and a parameter the
+    simulator would ignore is not offered. The sets of docs/walls.md: the silicone sheet 0.33
+    kg/m, the soft tissue 0.13 kg/m.
+    """
+
+    section = 'walls'
+    mass: float = spec(0.0, 'kg/m', 'mass of each surface per metre of its length (the strip '
+                       'and what moves with it); 0 = quasi-static walls', 0.0, 100.0)
+    damping: float = spec(0.0, 'N s/m^2', 'viscous damping of the foundation per metre of wall',
+                          0.0, 1e6)
+
+
+@dataclass(frozen=True)
+class FlexureParams(_Validated):
+    """
+    A compliant robot (issue 31, core.flexure, docs/model.md): each wave link on a flexure.
+
+    The link follows its kinematic target through a spring-damper normal to the backbone. Not yet
+    a Scenario section, for the same reason as WallDynamicsParams. docs/model.md gives the
+    printed TPU and nylon sets and their sources.
+    """
+
+    section = 'flexure'
+    stiffness: float = spec(0.0, 'N/m', "stiffness of a link's flexure normal to the backbone; "
+                            "0 = rigid links (the paper's robot)", 0.0, 1e9)
+    damping: float = spec(0.0, 'N s/m', "viscous damping of a link's flexure", 0.0, 1e3)
+    link_mass: float = spec(0.004, 'kg', 'mass of one wave link (part of robot.mass)', 0.0,
+                            0.1, low_open=True)
+
+
+@dataclass(frozen=True)
 class Scenario:
     """Everything one simulation run needs."""
 
