@@ -23,7 +23,8 @@ each mode: unconditionally stable at any stiffness, no numerical damping). The w
 
 the modes carry only what the wall's inertia and damping add to the quasi-static shape. With
 m = 0 the correction is exactly zero (z_n = g_n / K_n) and the wall is core.walls' to the digit:
-the massless limit is the quasi-static wall by construction. The modes beyond the band's last
+the massless limit is the quasi-static wall by construction (a massless wall with damping
+relaxes towards it: a Kelvin-Voigt foundation). The modes beyond the band's last
 keep their quasi-static share (the closed form holds all of it), so the truncation costs only
 the dynamic correction of wavenumbers far beyond the foundation's beta = (k / 4 EI)^(1/4).
 
@@ -44,6 +45,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from saw_ros.core.params import SurfaceParams, WallDynamicsParams
 from saw_ros.core.walls import deflection as quasi_static_deflection
 
 # The band: a periodic wall 2 m long, far longer than the decay length 1 / beta (about 1 cm for
@@ -142,11 +144,17 @@ def mode_propagator(stiffness: np.ndarray, mass: float, damping: float,
     Rows Phi00, Phi01, Phi10, Phi11 of exp(A dt), A = [[0, 1], [-K/m, -c/m]]: with the mean
     eigenvalue l = -c / 2m and d = sqrt(l^2 - K/m), exp(A t) = exp(l t) (cosh(d t) I +
     sinh(d t) / d (A - l I)), from the two exponentials exp((l +- d) t) so that stiff,
-    overdamped modes do not overflow. A massless wall has no dynamics: all zeros.
+    overdamped modes do not overflow. Without mass a damped mode relaxes, c u' + K u = 0:
+    u <- exp(-K dt / c) u and u' = -K u / c; without mass or damping it has no dynamics (all
+    zeros: it sits at its load's rest).
     """
     k = np.asarray(stiffness, float)
     if mass == 0.0:
-        return np.zeros((4, k.size))
+        phi = np.zeros((4, k.size))
+        if damping > 0.0:
+            phi[0] = np.exp(-k * dt / damping)
+            phi[2] = -k / damping * phi[0]
+        return phi
     mean = -damping / (2.0 * mass)
     split = np.sqrt(complex(mean * mean) - k / mass + 0j)
     e1, e2 = np.exp((mean + split) * dt), np.exp((mean - split) * dt)
@@ -169,6 +177,12 @@ class DynamicWall:
     ``foundation`` k N/m^2, ``bending`` EI N m^2, ``width`` b m (the contact width), ``mass``
     m kg/m, ``damping`` c N s/m^2, ``dt`` s.
     """
+
+    @classmethod
+    def of(cls, surface: SurfaceParams, walls: WallDynamicsParams, dt: float) -> 'DynamicWall':
+        """Return the dynamic wall of a scenario's surface and wall dynamics."""
+        return cls(surface.foundation_stiffness, surface.bending_stiffness,
+                   surface.contact_width, walls.mass, walls.damping, dt)
 
     def __init__(self, foundation: float, bending: float, width: float, mass: float,
                  damping: float, dt: float, length: float = BAND_LENGTH,
@@ -212,7 +226,7 @@ class DynamicWall:
         z_re, z_im = self.z_re.copy(), self.z_im.copy()
         power_before = self._dissipation_rate()
         _project(self.loads, self.at, self.kappa1, self.shape, self.g_re, self.g_im)
-        if self.mass == 0.0:                # no dynamics: the modes follow their loads at once
+        if self.mass == 0.0 and self.damping == 0.0:      # the modes follow their loads at once
             np.divide(self.g_re, self.stiffness, out=self.z_re)
             np.divide(self.g_im, self.stiffness, out=self.z_im)
         else:

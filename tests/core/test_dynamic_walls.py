@@ -6,6 +6,7 @@ import pytest
 
 from saw_ros.core.dynamic_walls import critical_speed, DynamicWall, mode_propagator
 from saw_ros.core.dynamic_walls import moving_load_deflection, ring_down
+from saw_ros.core.params import SurfaceParams, WallDynamicsParams
 from saw_ros.core.walls import deflection, point_deflection
 
 K, EI, M = 9e3, 1.2e-5, 0.13                # the soft-tissue set of docs/walls.md, 0.13 kg/m
@@ -102,7 +103,7 @@ def test_the_energy_of_a_run_balances_the_work_of_the_loads():
 
 def test_a_massless_wall_is_the_quasi_static_wall():
     """Without mass no correction at all: the deflection is core.walls' closed form."""
-    wall = DynamicWall(K, EI, 0.005, 0.0, DAMPING, 1e-3)
+    wall = DynamicWall(K, EI, 0.005, 0.0, 0.0, 1e-3)
     loads, at = [1.0, 0.6, 0.3], [0.0, 0.011, 0.025]
     wall.step(loads, at)
     x = np.linspace(-0.05, 0.08, 131)
@@ -116,6 +117,20 @@ def test_a_massless_wall_is_the_quasi_static_wall():
     for _ in range(3):
         light.step(loads, at)
     np.testing.assert_allclose(light.deflection(x), exact, atol=1e-6 * exact.max())
+
+
+def test_a_massless_damped_wall_relaxes_to_the_quasi_static_one_at_k_over_c():
+    """No mass, damping c: the uniform mode follows k w + c w_t = q, exactly."""
+    dt = 2e-5
+    wall = DynamicWall.of(SurfaceParams(foundation_stiffness=K, bending_stiffness=EI),
+                          WallDynamicsParams(mass=0.0, damping=DAMPING), dt)
+    wall.z_re[0] = 1e-3
+    wall.v_re[0] = -K / DAMPING * 1e-3          # its rate, for the dissipation's first step
+    for _ in range(50):
+        wall.step([], [])
+    assert wall.deflection([0.2])[0] == pytest.approx(1e-3 * math.exp(-K * 50 * dt / DAMPING))
+    # Energy: what the foundation held went into its damping (trapezoid in time).
+    assert wall.energy() + wall.dissipated == pytest.approx(K * 1e-3 ** 2, rel=3e-3)
 
 
 def test_the_deflection_after_a_step_is_free_plus_compliance_times_the_held_loads():
