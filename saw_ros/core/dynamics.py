@@ -24,14 +24,17 @@ import functools
 import math
 from typing import Any, Callable, cast, Optional, Sequence, Tuple, Union
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
 from saw_ros.core import stability
-from saw_ros.core.contact import contact_step, ContactLaw, ContactState, Param
+from saw_ros.core.contact import ContactLaw, ContactState, NORMAL, OFFSET_X, OFFSET_Y, Param
+from saw_ros.core.contact import PENETRATION, press_tips, SEEN, TANGENTIAL, X
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
-from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
-from saw_ros.core.motor import MotorLaw
+from saw_ros.core.kinematics import check_no_interference, place_tips, TipRateTable, TipTable
+from saw_ros.core.kinematics import turned_table_value
+from saw_ros.core.motor import MOTOR_FIELDS, MotorLaw, TORQUE_CONSTANT, turn_helix
 from saw_ros.core.params import ParameterError, PLACEMENT_SHARE, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
 from saw_ros.core.walls import Walls
@@ -42,6 +45,194 @@ TWO_PI = 2.0 * math.pi
 # (5 Hz) drives the robot at 0.35 m/s, and a robot thrown by a tether force (external_force
 # 1e9 N sent it to x = -4.8e10 m) or falling through a surface moves orders of magnitude faster.
 MAX_SPEED = 100.0
+
+# Columns of a scenario's state (Simulator.body[s]): the pose x, y, theta and its rates vx, vy,
+# w (m, rad, m/s, rad/s), the helix phase (rad) and speed (rad/s), the net contact force and
+# moment of the last step (surface axes, N, N m), the motor's torque at the helix, current,
+# load torque and friction met (N m, A; NaN without a motor), the motor's voltage (V, the
+# profile's at this phase when one feeds it), the state of the last kernel call (0 stepped on,
+# DIVERGED, RUNAWAY) and the steps it made.
+POSE_X, POSE_Y, THETA, VX, VY, W, PHASE, OMEGA = range(8)
+FX, FY, MZ, MOTOR_TORQUE, CURRENT, LOAD_TORQUE, FRICTION_TORQUE, VOLTAGE = range(8, 16)
+STATUS, DONE = 16, 17
+BODY_FIELDS = 18
+DIVERGED, RUNAWAY = 1, 2
+# Columns of a scenario's constants (Simulator.constants[s]): surface.max_penetration and the
+# gap (m), dt / mass and dt / inertia, the constant accelerations (gravity, tether) times dt
+# along x and y (m/s), the constant helix's turn per step (rad), 1 where a motor drives the
+# helix, the speed of a constant helix (rad/s), the runaway speed (rad/s), 1 where any scenario
+# of the batch has a motor, 1 while a voltage profile feeds it.
+MAX_PENETRATION, GAP, MASS_DT, INERTIA_DT, BIAS_X, BIAS_Y, OMEGA_DT = range(7)
+DRIVEN, CONSTANT_OMEGA, RUNAWAY_SPEED, MOTOR_ON, PROFILED = range(7, 12)
+CONSTANT_FIELDS = 12
+# Columns of the recorded trace: the pose and its rates, helix speed, motor torque, current.
+TRACE_FIELDS = 9
+# Scenario-steps in one kernel call from which the parallel kernel is faster (bench/core.py).
+PARALLEL_WORK = 2048
+
+
+@numba.njit(cache=True)
+def profile_voltage(phase: float, harmonics: np.ndarray, drive: np.ndarray) -> float:
+    """
+    Return a voltage profile's V at the helix phase (core.drive.PhaseProfile.voltage; kernel).
+
+    ``drive``: the mean voltage, the top of the range, then the relative cos and sin
+    coefficients of the ``harmonics``.
+    """
+    k = len(harmonics)
+    shape = 1.0
+    for h in range(k):
+        angle = phase * harmonics[h]
+        shape += math.cos(angle) * drive[2 + h] + math.sin(angle) * drive[2 + k + h]
+    return float(min(max(drive[0] * shape, 0.0), drive[1]))
+
+
+@numba.njit(cache=True)
+def move_body(dt: float, side: np.ndarray, rates: np.ndarray, scale: float,
+              harmonics: np.ndarray, drive: np.ndarray, motor: np.ndarray, constants: np.ndarray,
+              body: np.ndarray, tips: np.ndarray) -> int:
+    """
+    Finish one scenario's step from its tips' contact forces (compiled kernel).
+
+    The net force and moment about the COM, semi-implicit Euler of the body, then the helix:
+    the motor against the load torque of the contacts, or its constant speed. Returns 0, or
+    DIVERGED / RUNAWAY (the step left the model: the caller says why).
+    """
+    fx = fy = moment = 0.0
+    for p in range(tips.shape[1]):
+        # Bottom tips push up (+y), top tips push down: Fy = -side Fn. Moment: rx Fy - ry Fx.
+        fn, ft = tips[NORMAL, p] * side[p], tips[TANGENTIAL, p]
+        fx += ft
+        fy -= fn
+        moment -= tips[OFFSET_X, p] * fn + tips[OFFSET_Y, p] * ft
+    body[FX], body[FY], body[MZ] = fx, fy, moment
+    phase = body[PHASE]
+    motor_on = constants[MOTOR_ON] > 0.0
+    load = 0.0
+    if motor_on:
+        # tau_load = -sum F . dr/dphase, F = (Ft, -side Fn) on the tip, dr/dphase the tip's
+        # rate (body frame, from the table) turned by the pitch the forces were found at.
+        cos, sin = math.cos(body[THETA]), math.sin(body[THETA])
+        for p in range(tips.shape[1]):
+            rx, ry = turned_table_value(rates, scale, phase, p, cos, sin)
+            load += tips[NORMAL, p] * ry * side[p] - tips[TANGENTIAL, p] * rx
+    body[VX] += fx * constants[MASS_DT] + constants[BIAS_X]
+    body[VY] += fy * constants[MASS_DT] + constants[BIAS_Y]
+    body[W] += moment * constants[INERTIA_DT]
+    body[POSE_X] += body[VX] * dt
+    body[POSE_Y] += body[VY] * dt
+    body[THETA] += body[W] * dt
+    if motor_on:
+        if constants[PROFILED] > 0.0:
+            body[VOLTAGE] = profile_voltage(phase, harmonics, drive)
+        if constants[DRIVEN] > 0.0:
+            omega, torque, friction = turn_helix(body[OMEGA], load, body[VOLTAGE], motor)
+        else:
+            omega, torque, friction = constants[CONSTANT_OMEGA], math.nan, math.nan
+        body[MOTOR_TORQUE], body[CURRENT] = torque, torque / motor[TORQUE_CONSTANT]
+        body[LOAD_TORQUE], body[FRICTION_TORQUE] = load, friction
+        body[OMEGA] = omega
+        if not abs(omega) <= constants[RUNAWAY_SPEED]:
+            return RUNAWAY
+        phase += omega * dt
+    else:
+        phase += constants[OMEGA_DT]
+    body[PHASE] = phase % (2.0 * math.pi)
+    # Non-finite states fail every comparison.
+    deepest = constants[MAX_PENETRATION]
+    for p in range(tips.shape[1]):
+        if not tips[SEEN, p] <= deepest:
+            return DIVERGED
+    for i in range(VX, W + 1):
+        if not abs(body[i]) <= MAX_SPEED:
+            return DIVERGED
+    for i in range(POSE_X, THETA + 1):
+        if not math.isfinite(body[i]):
+            return DIVERGED
+    return 0
+
+
+@numba.njit(cache=True)
+def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scale: float,
+                     side: np.ndarray, table: np.ndarray, rates: np.ndarray,
+                     harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
+                     motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
+                     tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
+    """
+    Advance scenario ``s`` by ``steps`` steps: tips, contact law, body and helix (kernel).
+
+    Records the state into ``trace`` (and the tips' forces into ``trace_tips`` when it has
+    rows) after every step whose number since the run's start (``first`` + k) is a multiple of
+    ``every``; stops at a step that leaves the model, with body[s, STATUS] saying why and
+    body[s, DONE] the steps made.
+    """
+    b, c, t = body[s], constants[s], tips[s]
+    b[STATUS] = 0.0
+    for k in range(1, steps + 1):
+        place_tips(table, scale, side, b, b[PHASE], c[GAP], t)
+        press_tips(law[s], t)
+        status = move_body(dt, side, rates, scale, harmonics, drive[s], motor[s], c, b, t)
+        if status != 0:
+            b[STATUS] = status
+            b[DONE] = k - 1 if status == RUNAWAY else k
+            return
+        n = first + k
+        if n % every == 0:
+            j = n // every
+            for i in range(W + 1):
+                trace[j, s, i] = b[i]
+            trace[j, s, 6] = b[OMEGA]
+            trace[j, s, 7] = b[MOTOR_TORQUE]
+            trace[j, s, 8] = b[CURRENT]
+            if trace_tips.shape[0] > 0:
+                trace_tips[j, 0, s] = t[NORMAL]
+                trace_tips[j, 1, s] = t[TANGENTIAL]
+    b[DONE] = steps
+
+
+@numba.njit(cache=True)
+def advance(steps: int, first: int, every: int, dt: float, scale: float, side: np.ndarray,
+            table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray, drive: np.ndarray,
+            law: np.ndarray, motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
+            tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
+    """Advance every scenario by ``steps`` (``advance_scenario``), one after the other."""
+    for s in range(body.shape[0]):
+        advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
+                         drive, law, motor, constants, body, tips, trace, trace_tips)
+
+
+@numba.njit(cache=True, parallel=True)
+def advance_in_parallel(steps: int, first: int, every: int, dt: float, scale: float,
+                        side: np.ndarray, table: np.ndarray, rates: np.ndarray,
+                        harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
+                        motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
+                        tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
+    """``advance`` with the scenarios spread over the cores (numba's prange)."""
+    for s in numba.prange(body.shape[0]):
+        advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
+                         drive, law, motor, constants, body, tips, trace, trace_tips)
+
+
+@numba.njit(cache=True)
+def place_all_tips(table: np.ndarray, scale: float, side: np.ndarray, constants: np.ndarray,
+                   body: np.ndarray, tips: np.ndarray) -> None:
+    """Place every scenario's tips (``place_tips``): a step's first half with bending walls."""
+    for s in range(body.shape[0]):
+        place_tips(table, scale, side, body[s], body[s, PHASE], constants[s, GAP], tips[s])
+
+
+@numba.njit(cache=True)
+def press_and_move_all(dt: float, scale: float, side: np.ndarray, rates: np.ndarray,
+                       harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
+                       motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
+                       tips: np.ndarray) -> None:
+    """Press every scenario's tips, move its body and helix: a step's second half with walls."""
+    for s in range(body.shape[0]):
+        press_tips(law[s], tips[s])
+        status = move_body(dt, side, rates, scale, harmonics, drive[s], motor[s], constants[s],
+                           body[s], tips[s])
+        body[s, STATUS] = status
+        body[s, DONE] = 0 if status == RUNAWAY else 1
 
 
 class DivergenceError(RuntimeError):
@@ -98,31 +289,37 @@ class Simulator:
         self.table = tip_table(self.robot)
         self.count = len(scenarios)
         tips = self.table.count
+        # The state the kernels advance, one row per scenario (module constants name the
+        # columns; the attributes below are views of it).
         self.contacts = ContactState(self.count, tips)
-        self.q = np.zeros((6, self.count))       # x, y, theta, vx, vy, w
-        self.phase = np.zeros(self.count)
-        self.omega = np.zeros(self.count)        # helix speed, rad/s
+        self.tips = self.contacts.tips
+        self.body = np.zeros((self.count, BODY_FIELDS))
+        self.constants = np.zeros((self.count, CONSTANT_FIELDS))
+        self.q = self.body[:, POSE_X:W + 1].T            # x, y, theta, vx, vy, w: (6, S)
+        self.phase = self.body[:, PHASE]
+        self.omega = self.body[:, OMEGA]                 # helix speed, rad/s
         # The motor of the last step, per scenario (NaN where no motor drives the helix): torque
         # k i at the helix (N m), current (A), the load torque of the contacts and the friction
         # torque it met (N m).
-        self.motor_torque = np.full(self.count, np.nan)
-        self.current = np.full(self.count, np.nan)
-        self.load_torque = np.full(self.count, np.nan)
-        self.friction_torque = np.full(self.count, np.nan)
+        self.motor_torque = self.body[:, MOTOR_TORQUE]
+        self.current = self.body[:, CURRENT]
+        self.load_torque = self.body[:, LOAD_TORQUE]
+        self.friction_torque = self.body[:, FRICTION_TORQUE]
         self.steps = 0
-        self._forces = np.zeros((3, self.count))
         # Net contact force (fx, fy, surface axes, N) and moment about the COM (N m) of the last
         # step, per scenario: what the step accelerated the body with.
-        self.contact_wrench = np.zeros((3, self.count))
-        self._rot = np.zeros((self.count, 1), complex)
-        self._body = np.zeros((self.count, tips), complex)
-        self._gathered = np.zeros((self.count, tips), complex)
-        self._x = np.zeros((self.count, tips))                 # world tip abscissae, m
-        self._work = np.zeros((self.count, tips))
-        self._ones = np.ones(tips)
-        self.penetration = np.zeros((self.count, tips))        # > 0 inside a surface, m
+        self.contact_wrench = self.body[:, FX:MZ + 1].T
+        self._x = self.tips[:, X]                               # world tip abscissae, m
+        self.penetration = self.tips[:, PENETRATION]            # > 0 inside a surface, m
         # What the contact law sees: the penetration, less the bending walls' deflection.
-        self.depth = self.penetration
+        self.depth = self.tips[:, SEEN]
+        self._side = self.table.side
+        self._no_trace = np.zeros((0, 2, self.count, tips))
+        self._step_trace = np.zeros((2, self.count, TRACE_FIELDS))
+        self._motor_rows = np.zeros((self.count, MOTOR_FIELDS))
+        self._rates = np.zeros((2, 2, tips), complex)       # the rate table, with a motor
+        self._harmonics = np.zeros(0)
+        self._drive = np.zeros((self.count, 2))
         # The drive from outside (core.drive, issue 22): a commanded voltage (V, (S,)) or helix
         # frequency (Hz, (S,)) that overrides motor.voltage / conditions.frequency until cleared,
         # or a voltage profile over the helix turn. None: the parameters drive.
@@ -170,30 +367,34 @@ class Simulator:
             mu=surface('friction_coefficient'), exponent=surface('hertz_exponent'),
             restitution=surface('restitution'), hysteresis_speed=surface('hysteresis_speed'),
             dt=self.dt)
+        self._law_rows = self.law.rows(self.count)
         self._max_penetration = np.array([s.surface.max_penetration for s in scenarios])
         # Bending walls where any scenario has them (core.walls); None: rigid, as the paper's.
         # New parameters start the walls from the last forces' shape again at the next step.
         self.walls = (Walls(scenarios, self.table.side)
                       if any(s.surface.foundation_stiffness > 0.0 for s in scenarios) else None)
-        self._max_penetration_any = float(self._max_penetration.min())
         gap = np.array([[s.conditions.gap] for s in scenarios])
         self._gap = gap[:, 0]
         side = self.table.side
         # penetration = side * (y - level): top surface at y = gap, bottom at y = 0.
         self._level = np.where(side > 0, gap, 0.0) * side           # (S, P)
-        self._side = side
         self._omega_dt = np.array([TWO_PI * s.frequency * self.dt for s in scenarios])
         if self.commanded_frequency is not None:
             self._omega_dt = TWO_PI * self.commanded_frequency * self.dt
-        self._set_motor(scenarios)
         mass = np.array([s.robot.mass for s in scenarios])
         inertia = np.array([s.robot.inertia for s in scenarios])
-        self._inv_inertia = (1.0 / np.stack([mass, mass, inertia])) * self.dt
         slope = np.array([c.slope for c in cond])
         f_ext = np.array([c.external_force for c in cond])
-        # Constant accelerations (gravity, tether) times dt, per degree of freedom.
-        self._bias_dt = np.stack([-GRAVITY * np.sin(slope) - f_ext / mass,
-                                  -GRAVITY * np.cos(slope), np.zeros(self.count)]) * self.dt
+        c = self.constants
+        c[:, MAX_PENETRATION] = self._max_penetration
+        c[:, GAP] = self._gap
+        c[:, MASS_DT] = (1.0 / mass) * self.dt
+        c[:, INERTIA_DT] = (1.0 / inertia) * self.dt
+        # Constant accelerations (gravity, tether) times dt.
+        c[:, BIAS_X] = (-GRAVITY * np.sin(slope) - f_ext / mass) * self.dt
+        c[:, BIAS_Y] = -GRAVITY * np.cos(slope) * self.dt
+        c[:, OMEGA_DT] = self._omega_dt
+        self._set_motor(scenarios)
 
     def reset(self) -> None:
         """
@@ -209,6 +410,8 @@ class Simulator:
         self.omega[:] = np.where(self.driven, 0.0, self._omega_dt / self.dt)
         for a in (self.motor_torque, self.current, self.load_torque, self.friction_torque):
             a[:] = np.nan
+        self.body[:, FX:MZ + 1] = 0.0
+        self.body[:, STATUS:] = 0.0
         self.contacts.reset()
         if self.walls is not None:
             self.walls.reset()
@@ -222,16 +425,24 @@ class Simulator:
         self.omega[constant] = self._omega_dt[constant] / self.dt
         for a in (self.motor_torque, self.current, self.load_torque, self.friction_torque):
             a[constant] = np.nan
+        c = self.constants
+        c[:, DRIVEN] = self.driven
+        c[:, CONSTANT_OMEGA] = self._omega_dt / self.dt
+        c[:, MOTOR_ON] = self.motor_on
         if not self.motor_on:
+            c[:, PROFILED] = 0.0
             return
         self.rate_table = tip_rate_table(self.robot)
-        tips = self.table.count
-        self._rate = np.zeros((self.count, tips), complex)
-        self._rate_work = np.zeros((self.count, tips), complex)
+        self._rates = self.rate_table.stacked
         self.motor = MotorLaw([s.motor for s in scenarios], self.dt)
+        # The kernels read and the profile writes the voltage here: MotorLaw's is a view.
+        self.body[:, VOLTAGE] = self.motor.voltage
+        self.motor.voltage = self.body[:, VOLTAGE]
+        self._motor_rows = self.motor.rows()
         self._constant_omega = self._omega_dt / self.dt
         if self.commanded_voltage is not None:
             self.motor.set_voltage(self.commanded_voltage)
+        self._set_profile_rows()
         self._set_runaway()
 
     def _set_runaway(self) -> None:
@@ -240,6 +451,17 @@ class Simulator:
         if self.profile is not None:
             ideal = np.maximum(ideal, TWO_PI * self.motor.hz_per_volt * self.profile.peak)
         self._runaway = 5.0 * (ideal + self._constant_omega) + 1.0
+        self.constants[:, RUNAWAY_SPEED] = self._runaway
+
+    def _set_profile_rows(self) -> None:
+        """Give the kernels the voltage profile: mean, top, cos and sin coefficients."""
+        profile = self.profile
+        self.constants[:, PROFILED] = profile is not None
+        if profile is None:
+            return
+        self._harmonics = np.ascontiguousarray(profile.harmonics, dtype=float)
+        self._drive = np.ascontiguousarray(np.column_stack(
+            [profile.mean, np.full(self.count, profile.v_max), profile.cos, profile.sin]))
 
     # -- the drive from outside (core.drive) ----------------------------------------------------
     def command_voltage(self, voltage: Optional[ArrayLike]) -> None:
@@ -282,6 +504,8 @@ class Simulator:
             self._omega_dt = TWO_PI * frequency * self.dt
         constant = ~self.driven
         self.omega[constant] = self._omega_dt[constant] / self.dt
+        self.constants[:, OMEGA_DT] = self._omega_dt
+        self.constants[:, CONSTANT_OMEGA] = self._omega_dt / self.dt
         if self.motor_on:
             self._constant_omega = self._omega_dt / self.dt
             self._set_runaway()
@@ -294,46 +518,11 @@ class Simulator:
             raise ParameterError(f'expected a profile for {self.count} scenarios, got '
                                  f'{len(profile.mean)}')
         self.profile = profile
+        self._set_profile_rows()
         if profile is None:
             self.command_voltage(self.commanded_voltage)
         else:
             self._set_runaway()
-
-    def _motor_step(self) -> None:
-        """
-        Step the helix speed: the motor against the contacts of this step (docs/motor.md).
-
-        tau_load = -sum over tips of F . dr/dphase (F the surface's force on the tip, world
-        axes; dr/dphase the body-frame rate turned by the pitch): the torque the helix needs
-        to move the tips against their contact forces.
-        """
-        rate = self.rate_table.at(self.phase, out=self._rate, work=self._rate_work)
-        rate *= self._rot
-        contacts = self.contacts
-        # F = (Ft, -side Fn): F . r' = Ft r'x - side Fn r'y.
-        np.multiply(contacts.tangential, rate.real, out=self._work)
-        load = -(self._work @ self._ones)
-        np.multiply(contacts.normal, rate.imag, out=self._work)
-        load += self._work @ self._side
-        omega = self.omega
-        new, torque, friction = self.motor.step(omega, load)
-        # Scenarios of the batch without a motor keep their constant speed (and have no motor
-        # torque, current or friction to report).
-        new = np.where(self.driven, new, self._constant_omega)
-        torque = np.where(self.driven, torque, np.nan)
-        friction = np.where(self.driven, friction, np.nan)
-        self.motor_torque[:] = torque
-        self.current[:] = torque / self.motor.k
-        self.load_torque[:] = load
-        self.friction_torque[:] = friction
-        omega[:] = new
-        if not (np.abs(new) <= self._runaway).all():
-            i = int(np.argmax(~(np.abs(new) <= self._runaway)))
-            raise DivergenceError(
-                f'simulation diverged at t = {self.t:.3f} s (scenario {i}): the helix turned at '
-                f'{new[i] / TWO_PI:.3g} Hz, far beyond the no-load speed of its motor, '
-                f'{self.motor.ideal[i] / TWO_PI:.3g} Hz (load torque {load[i]:.3g} N m); '
-                f'reduce integration.dt or soften the surfaces')
 
     @property
     def t(self) -> float:
@@ -362,55 +551,56 @@ class Simulator:
                 f'{self._max_penetration[i] * 1000:.1f} mm')
 
     # -- stepping ------------------------------------------------------------------------------
+    def _kernel_arguments(self) -> Tuple[Any, ...]:
+        return (self.dt, self.table.scale, self._side, self.table.stacked, self._rates,
+                self._harmonics, self._drive, self._law_rows, self._motor_rows, self.constants,
+                self.body, self.tips)
+
     def step(self) -> None:
         """One semi-implicit Euler step of every scenario."""
-        table, contacts, q = self.table, self.contacts, self.q
-        body = table.at(self.phase, out=self._body, work=self._gathered)  # tips, body frame
-        np.exp(1j * q[2], out=self._rot[:, 0])
-        body *= self._rot                                        # rotated offsets from the COM
-        bx, by = body.real, body.imag
-        x = np.add(bx, q[0, :, None], out=self._x)
-        pen = np.add(by, q[1, :, None], out=self.penetration)
-        pen *= self._side
-        pen -= self._level
-        if self.walls is not None:
-            # Bending walls (core.walls): the depth against the deflected surfaces.
-            pen = self.walls.solve(pen, x, contacts, self.law)
-        self.depth = pen
-        fn, ft = contact_step(contacts, pen, x, self.law)
-        forces = self._forces
-        # Bottom tips push up (+y), top tips push down: Fy = -side Fn. Row sums as mat-vec
-        # products: BLAS is several times faster than sum(axis=1) here.
-        side, ones = self._side, self._ones
-        np.matmul(fn, side, out=forces[1])
-        np.matmul(ft, ones, out=forces[0])
-        # Moment about the COM: rx Fy - ry Fx.
-        np.multiply(bx, fn, out=self._work)
-        m = self._work @ side
-        np.multiply(by, ft, out=self._work)
-        m += self._work @ ones
-        np.negative(m, out=forces[2])
-        forces[1] *= -1.0
-        np.copyto(self.contact_wrench, forces)
-        forces *= self._inv_inertia
-        forces += self._bias_dt
-        q[3:] += forces
-        q[:3] += q[3:] * self.dt
-        if self.motor_on:
-            if self.profile is not None:
-                self.motor.set_voltage(self.profile.voltage(self.phase))
-            self._motor_step()
-            self.phase += self.omega * self.dt
-        else:
-            self.phase += self._omega_dt
-        np.remainder(self.phase, TWO_PI, out=self.phase)
-        self.steps += 1
-        # One dot product bounds every speed and catches NaN (the comparison is then False).
-        speed = q[3:]
-        if not np.vdot(speed, speed) <= MAX_SPEED ** 2 or \
-                pen.max() > self._max_penetration_any or \
-                (self.walls is not None and (self.walls.largest > self._gap).any()):
-            self._check_divergence()
+        if self.walls is None:
+            self._advance(1, 0, 1, self._step_trace, self._no_trace)
+            return
+        dt, scale, side, table, rates, harmonics, drive, law, motor, constants, body, tips = \
+            self._kernel_arguments()
+        place_all_tips(table, scale, side, constants, body, tips)
+        # Bending walls (core.walls): the depth against the deflected surfaces.
+        self.depth[:] = self.walls.solve(self.penetration, self._x, self.contacts, self.law)
+        press_and_move_all(dt, scale, side, rates, harmonics, drive, law, motor, constants,
+                           body, tips)
+        self._finish(1)
+        if (self.walls.largest > self._gap).any():
+            self._check_divergence(int(np.argmax(self.walls.largest - self._gap)))
+
+    def _advance(self, steps: int, first: int, every: int, trace: np.ndarray,
+                 trace_tips: np.ndarray) -> None:
+        """Advance every scenario ``steps`` steps in one kernel call (rigid walls)."""
+        dt, scale, side, table, rates, harmonics, drive, law, motor, constants, body, tips = \
+            self._kernel_arguments()
+        # Spread over the cores when there is enough to share: a parallel call costs more to
+        # start than one scenario's step.
+        kernel = advance_in_parallel if self.count * steps >= PARALLEL_WORK else advance
+        kernel(steps, first, every, dt, scale, side, table, rates, harmonics, drive, law, motor,
+               constants, body, tips, trace, trace_tips)
+        self._finish(steps)
+
+    def _finish(self, steps: int) -> None:
+        """Count the steps made; raise DivergenceError where a scenario left the model."""
+        status = self.body[:, STATUS]
+        if not status.any():
+            self.steps += steps
+            return
+        # The scenario that left first (the lowest index among equals), at the time it did.
+        done = np.where(status != 0, self.body[:, DONE], np.inf)
+        i = int(np.argmin(done))
+        self.steps += int(done[i])
+        if status[i] == RUNAWAY:
+            raise DivergenceError(
+                f'simulation diverged at t = {self.t:.3f} s (scenario {i}): the helix turned at '
+                f'{self.omega[i] / TWO_PI:.3g} Hz, far beyond the no-load speed of its motor, '
+                f'{self.motor.ideal[i] / TWO_PI:.3g} Hz (load torque '
+                f'{self.load_torque[i]:.3g} N m); reduce integration.dt or soften the surfaces')
+        self._check_divergence(i)
 
     @property
     def tip_positions(self) -> np.ndarray:
@@ -418,25 +608,21 @@ class Simulator:
         return cast(np.ndarray,
                     self._x + 1j * (self.penetration * self._side + self._level * self._side))
 
-    def _check_divergence(self) -> None:
+    def _check_divergence(self, i: int) -> None:
+        """Raise DivergenceError saying how scenario ``i`` left the model."""
         t = self.t
-        bad = ~np.isfinite(self.q).all(axis=0)
-        if bad.any():
-            i = int(np.argmax(bad))
+        if not np.isfinite(self.q[:, i]).all():
             raise DivergenceError(
                 f'simulation diverged at t = {t:.3f} s (scenario {i}): the state became '
                 f'non-finite; reduce integration.dt or soften the surfaces')
-        fast = np.abs(self.q[3:]).max(axis=0)
-        if (fast > MAX_SPEED).any():
-            i = int(np.argmax(fast))
-            vx, vy, w = self.q[3:, i]
+        vx, vy, w = self.q[3:, i]
+        if max(abs(vx), abs(vy), abs(w)) > MAX_SPEED:
             raise DivergenceError(
                 f'simulation diverged at t = {t:.3f} s (scenario {i}): the robot moved at '
                 f'({vx:.3g} m/s, {vy:.3g} m/s, {w:.3g} rad/s), beyond {MAX_SPEED:g} m/s or '
                 f'rad/s, far outside the model (check the resisting force and slope)')
-        too_deep = self.depth - self._max_penetration[:, None]
-        i, tip = (int(v) for v in np.unravel_index(np.argmax(too_deep), too_deep.shape))
-        if too_deep[i, tip] > 0:
+        tip = int(np.argmax(self.depth[i]))
+        if self.depth[i, tip] > self._max_penetration[i]:
             n = self.table.count // 2
             surface = 'top' if tip >= n else 'bottom'
             raise DivergenceError(
@@ -446,18 +632,16 @@ class Simulator:
                 f'{self._max_penetration[i] * 1000:.1f} mm (the robot was pushed through the '
                 f'surface: check the slope, resisting force and stiffness, or reduce '
                 f'integration.dt)')
-        if self.walls is not None:
+        if self.walls is not None and self.walls.largest[i] > self._gap[i]:
             # A wall that gives way by more than the gap is no longer a wall of the channel
             # (nor a small deflection of a beam on its foundation): refused, not simulated.
-            i = int(np.argmax(self.walls.largest - self._gap))
-            if self.walls.largest[i] > self._gap[i]:
-                wall = self.scenarios[i].surface
-                raise DivergenceError(
-                    f'simulation diverged at t = {t:.3f} s (scenario {i}): a wall gave way by '
-                    f'{self.walls.largest[i] * 1000:.0f} mm, more than the gap of '
-                    f'{self._gap[i] * 1000:.0f} mm: walls this soft do not hold the robot '
-                    f'(surface.foundation_stiffness = {wall.foundation_stiffness:g} N/m^2, '
-                    f'surface.bending_stiffness = {wall.bending_stiffness:g} N m^2)')
+            wall = self.scenarios[i].surface
+            raise DivergenceError(
+                f'simulation diverged at t = {t:.3f} s (scenario {i}): a wall gave way by '
+                f'{self.walls.largest[i] * 1000:.0f} mm, more than the gap of '
+                f'{self._gap[i] * 1000:.0f} mm: walls this soft do not hold the robot '
+                f'(surface.foundation_stiffness = {wall.foundation_stiffness:g} N/m^2, '
+                f'surface.bending_stiffness = {wall.bending_stiffness:g} N m^2)')
 
     def run(self, duration: float, record_every: int = 1,
             progress: Optional[Callable[[int], None]] = None,
@@ -465,40 +649,48 @@ class Simulator:
         """
         Step for ``duration`` seconds, recording the state every ``record_every`` steps.
 
-        ``progress(n)`` is called with the number of steps done since the last call.
+        ``progress(n)`` is called with the number of steps done since the last call. Without
+        bending walls the steps run inside the kernel: one call a run, or about 200 with
+        ``progress``.
         """
         steps = int(round(duration / self.dt))
         n_rec = steps // record_every + 1
-        t = np.empty(n_rec)
-        q = np.empty((n_rec, self.count, 6))
-        shape = (n_rec, self.count, self.table.count)
-        # Any: None when not recorded, and the loop below indexes them only when they are not.
-        fn: Any = np.zeros(shape) if contacts else None
-        ft: Any = np.zeros(shape) if contacts else None
-        omega = np.empty((n_rec, self.count))
-        torque: Any = np.empty((n_rec, self.count)) if self.motor_on else None
-        current: Any = np.empty((n_rec, self.count)) if self.motor_on else None
-        t[0], q[0], omega[0] = self.t, self.q.T, self.omega
-        if self.motor_on:
-            torque[0], current[0] = self.motor_torque, self.current
-        chunk = max(1, steps // 200)
-        for k in range(1, steps + 1):
-            self.step()
-            if k % record_every == 0:
-                j = k // record_every
-                t[j] = self.t
-                q[j] = self.q.T
-                omega[j] = self.omega
-                if self.motor_on:
-                    torque[j], current[j] = self.motor_torque, self.current
-                if contacts:
-                    fn[j] = self.contacts.normal
-                    ft[j] = self.contacts.tangential
-            if progress is not None and k % chunk == 0:
-                progress(chunk)
-        if progress is not None and steps % chunk:
-            progress(steps % chunk)
+        trace = np.full((n_rec, self.count, TRACE_FIELDS), np.nan)
+        trace_tips = (np.zeros((n_rec, 2, self.count, self.table.count)) if contacts
+                      else self._no_trace)
+        start = self.steps
+        self._record(trace, 0)
+        chunk = max(1, steps // 200) if progress is not None else max(1, steps)
+        done = 0
+        while done < steps:
+            n = min(chunk, steps - done)
+            if self.walls is None:
+                self._advance(n, done, record_every, trace, trace_tips)
+            else:
+                for k in range(done + 1, done + n + 1):
+                    self.step()
+                    if k % record_every == 0:
+                        self._record(trace, k // record_every)
+                        if contacts:
+                            trace_tips[k // record_every, 0] = self.contacts.normal
+                            trace_tips[k // record_every, 1] = self.contacts.tangential
+            done += n
+            if progress is not None:
+                progress(n)
+        t = (start + np.arange(n_rec) * record_every) * self.dt
+        q = np.ascontiguousarray(trace[:, :, :6])
+        omega = np.ascontiguousarray(trace[:, :, 6])
+        torque = np.ascontiguousarray(trace[:, :, 7]) if self.motor_on else None
+        current = np.ascontiguousarray(trace[:, :, 8]) if self.motor_on else None
+        fn = np.ascontiguousarray(trace_tips[:, 0]) if contacts else None
+        ft = np.ascontiguousarray(trace_tips[:, 1]) if contacts else None
         return Trajectory(t, q, self.scenarios, fn, ft, omega, torque, current)
+
+    def _record(self, trace: np.ndarray, row: int) -> None:
+        trace[row, :, :6] = self.q.T
+        trace[row, :, 6] = self.omega
+        trace[row, :, 7] = self.motor_torque
+        trace[row, :, 8] = self.current
 
 
 def _run_chunk(job: Tuple[Sequence[Scenario], float, int, bool]) -> Trajectory:
