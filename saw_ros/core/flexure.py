@@ -1,0 +1,186 @@
+"""
+A compliant robot (issue 31): each wave link on a flexure between it and the helix/backbone.
+
+The paper's second remedy for the vertical vibration is "a monolithic compliant robot
+structure": one printed part whose hinges are springs. Here each wave link, of mass m, follows
+its kinematic target (core.kinematics) through a flexure of stiffness k and damping c normal to
+the backbone; e is the link's deflection from its target (m, + along the body's normal, y):
+
+    m e'' + c e' + k e = F_bottom - F_top,
+
+F the normal loads of the link's bottom and top tips (> 0 pushing the tip away from its wall:
+up for the bottom tip, down for the top one). The backbone (and through it the helix and the
+body) receives the flexure's force, which over a step carries the same impulse as the tips'
+loads less what the link's own momentum took:
+
+    reaction = F - m (e'_after - e'_before) / dt,    F = F_bottom - F_top at the step's end.
+
+Integration, and why: the flexure is stiff against the step (k 1e4 N/m on a 4 g link rings at
+250 Hz, beyond 1e6 N/m faster than 1 / dt), so it is stepped exactly, as each mode of
+core.dynamic_walls is: the oscillator's 2 x 2 matrix exponential (dynamic_walls.mode_propagator)
+advances (e, e') without error and unconditionally stable at any stiffness, with no numerical
+damping to hide a vibration the flexure would pass, under a load that varies linearly over the
+step from the last step's value to this one's (a first-order hold: second order in dt,
+tests/core/test_flexure.py measures it against smaller steps). A load held constant instead
+(zero-order) kicks an undamped stiff flexure at every step: at k = 1e9 N/m its ringing moved the
+reaction by 1e-3 of the load within 0.2 s; the ramp's kicks are 1 / (omega dt) of those. The
+step-end load makes the deflection after the step linear in it, e = free + C F, so that the
+contact solve balances it implicitly (``balance_links``): rigid flexures (k -> inf) give C -> 0,
+e -> 0 and a reaction equal to the step-end load, the rigid robot's step (its semi-implicit
+Euler applies the step-end contact forces over the step, and so does the reaction above).
+"""
+from __future__ import annotations
+
+import math
+from typing import Tuple
+
+import numpy as np
+
+from saw_ros.core.dynamic_walls import compiled, mode_propagator
+from saw_ros.core.params import FlexureParams
+
+# The link solve (balance_links): Newton safeguarded by bisection on each link's deflection,
+# to this tolerance (m), a thousandth of core.walls' TOLERANCE; a few iterations a link.
+TOLERANCE = 1e-10
+MAX_ITERATIONS = 60
+
+
+class Flexures:
+    """The flexures of n wave links of one robot: their state and the step's constants."""
+
+    def __init__(self, flexure: FlexureParams, links: int, dt: float):
+        if flexure.stiffness <= 0.0:
+            raise ValueError('flexure.stiffness = 0 means rigid links: no flexures to step')
+        self.params, self.dt = flexure, dt
+        self.phi = mode_propagator(np.array([flexure.stiffness]), flexure.link_mass,
+                                   flexure.damping, dt)[:, 0].copy()
+        k, c, p = flexure.stiffness, flexure.damping, self.phi
+        # The deflection after a step per newton of step-end load on the link (m/N): the ramp's
+        # particular solution F/k - c F'/k^2, less what the homogeneous part takes back.
+        self.compliance = (1.0 / k - c / (k * k * dt) * (1.0 - p[0]) - p[1] / (k * dt))
+        self.load = np.zeros(links)              # the last step-end load, N (+ y)
+        self.deflection = np.zeros(links)        # e, m
+        self.rate = np.zeros(links)              # e', m/s
+        self.reaction = np.zeros(links)          # on the backbone over the last step, N (+ y)
+        self.free = np.zeros(links)              # the deflection after the step without loads
+
+    def prepare(self) -> np.ndarray:
+        """Return the deflection each link reaches at the step's end under no load (m)."""
+        _free(self.deflection, self.rate, self.load, self.params.stiffness,
+              self.params.damping, self.dt, self.phi, self.free)
+        return self.free
+
+    def advance(self, load: np.ndarray) -> None:
+        """Step the links over dt to their net step-end loads ``load`` (N, + y), from the last."""
+        _advance(load, self.params.stiffness, self.params.damping, self.params.link_mass,
+                 self.dt, self.phi, self.load, self.deflection, self.rate, self.reaction)
+
+    def energy(self) -> float:
+        """Return the flexures' energy, J: the links' relative motion and the springs."""
+        m, k = self.params.link_mass, self.params.stiffness
+        return float(0.5 * (m * self.rate @ self.rate + k * self.deflection @ self.deflection))
+
+
+@compiled
+def _ramp(e: float, rate: float, start: float, end: float, k: float, c: float, dt: float,
+          phi: np.ndarray) -> Tuple[float, float]:
+    """
+    Return (e, e') after dt of m e'' + c e' + k e = F(t), F linear from ``start`` to ``end``.
+
+    The ramp's particular solution x_p = F(t) / k - c F' / k^2, plus the homogeneous rest
+    (e - x_p, e' - F' / k) advanced by the exact propagator ``phi``.
+    """
+    slope = (end - start) / dt
+    shift = c * slope / (k * k)
+    u = e - start / k + shift
+    v = rate - slope / k
+    return (end / k - shift + phi[0] * u + phi[1] * v,
+            slope / k + phi[2] * u + phi[3] * v)
+
+
+@compiled
+def _free(e: np.ndarray, rate: np.ndarray, load: np.ndarray, k: float, c: float, dt: float,
+          phi: np.ndarray, out: np.ndarray) -> None:
+    """out_i: where link i is after the step if its load ramps from its last to 0."""
+    for i in range(e.size):
+        out[i], _ = _ramp(e[i], rate[i], load[i], 0.0, k, c, dt, phi)
+
+
+@compiled
+def _advance(end: np.ndarray, k: float, c: float, mass: float, dt: float, phi: np.ndarray,
+             load: np.ndarray, e: np.ndarray, rate: np.ndarray, reaction: np.ndarray) -> None:
+    """Step each link exactly under its ramping load; the backbone's reaction keeps the impulse."""
+    for i in range(e.size):
+        before = rate[i]
+        e[i], rate[i] = _ramp(e[i], before, load[i], end[i], k, c, dt, phi)
+        load[i] = end[i]
+        reaction[i] = end[i] - mass * (rate[i] - before) / dt
+
+
+@compiled
+def _hertz(depth: float, stiffness: float, exponent: float) -> Tuple[float, float]:
+    """Return the elastic normal law's force kn d^p and its slope at depth d (0 outside)."""
+    if depth <= 0.0:
+        return 0.0, 0.0
+    root = depth ** (exponent - 1.0)
+    return stiffness * root * depth, exponent * stiffness * root
+
+
+@compiled
+def balance_links(bottom: np.ndarray, top: np.ndarray, free: np.ndarray, compliance: float,
+                  normal_stiffness: float, exponent: float, deflection: np.ndarray,
+                  force_bottom: np.ndarray, force_top: np.ndarray) -> int:
+    """
+    Solve each link's deflection against its tips' elastic contacts; return the iterations.
+
+    ``bottom``, ``top``: the tips' penetrations into their rigid walls at the link's target (m,
+    > 0 inside); the link at deflection e presses its bottom tip bottom - e deep and its top tip
+    top + e; e = free + C (F_bottom - F_top) with the elastic law F = kn d^p. The right-hand side
+    falls as e rises, so the root is single and bracketed by free and its first image: Newton
+    inside the bracket, bisection when a step would leave it. The standalone form of the
+    coupled solve (the step's contact law adds its hysteresis factor).
+    """
+    total = 0
+    for i in range(free.size):
+        e = free[i]
+        fb, sb = _hertz(bottom[i] - e, normal_stiffness, exponent)
+        ft, st = _hertz(top[i] + e, normal_stiffness, exponent)
+        image = free[i] + compliance * (fb - ft)
+        low, high = min(e, image), max(e, image)
+        for iteration in range(MAX_ITERATIONS):
+            fb, sb = _hertz(bottom[i] - e, normal_stiffness, exponent)
+            ft, st = _hertz(top[i] + e, normal_stiffness, exponent)
+            residual = e - free[i] - compliance * (fb - ft)
+            if residual > 0.0:
+                high = min(high, e)
+            else:
+                low = max(low, e)
+            step = residual / (1.0 + compliance * (sb + st))
+            total += 1
+            if abs(step) < TOLERANCE:
+                e -= step
+                break
+            e -= step
+            if not low <= e <= high:
+                e = 0.5 * (low + high)
+            if high - low < TOLERANCE:
+                break
+        deflection[i] = e
+        force_bottom[i], _ = _hertz(bottom[i] - e, normal_stiffness, exponent)
+        force_top[i], _ = _hertz(top[i] + e, normal_stiffness, exponent)
+    return total
+
+
+def transmissibility(frequency: float, stiffness: float, damping: float, mass: float,
+                     contact: float) -> Tuple[complex, complex]:
+    """
+    Return a link's deflection and reaction per metre of target motion into a linear contact.
+
+    The target pressed into a contact of stiffness ``contact`` (N/m) by a harmonic d(t) at
+    ``frequency`` (Hz): m e'' + c e' + k e = kc (d - e). Returns (e / d, reaction / d) as
+    complex amplitudes, reaction = k e + c e' (what the backbone feels, N/m). The closed form
+    the stepped flexure is checked against.
+    """
+    w = 2.0 * math.pi * frequency
+    e = contact / (stiffness + contact - mass * w * w + 1j * w * damping)
+    return e, (stiffness + 1j * w * damping) * e

@@ -1,0 +1,125 @@
+"""A compliant robot's flexures (issue 31): exact oscillator, series contact, rigid limit."""
+import math
+
+import numpy as np
+import pytest
+
+from saw_ros.core.flexure import balance_links, Flexures, transmissibility
+from saw_ros.core.params import FlexureParams
+
+TPU = FlexureParams(stiffness=2000.0, damping=0.5, link_mass=0.004)     # docs/model.md, TPU
+KN, EXPONENT = 15500.0, 1.5                                              # the paper's contact
+
+
+def drive(flexures, bottom, top, kn=KN, exponent=EXPONENT):
+    """One step: the links balanced against their contacts at the step's end, then advanced."""
+    n = len(bottom)
+    e, fb, ft = np.empty(n), np.empty(n), np.empty(n)
+    balance_links(bottom, top, flexures.prepare(), flexures.compliance, kn, exponent, e, fb, ft)
+    flexures.advance(fb - ft)
+    return e, fb, ft
+
+
+def test_a_free_link_rings_at_sqrt_k_over_m_and_decays_at_c_over_2m():
+    dt = 1e-4
+    flexures = Flexures(TPU, 1, dt)
+    flexures.deflection[0] = 1e-4
+    e = []
+    for _ in range(400):
+        flexures.advance(np.zeros(1))
+        e.append(flexures.deflection[0])
+    t = dt * np.arange(1, 401)
+    decay = TPU.damping / (2 * TPU.link_mass)
+    omega = math.sqrt(TPU.stiffness / TPU.link_mass - decay ** 2)
+    exact = 1e-4 * np.exp(-decay * t) * (np.cos(omega * t) + decay / omega * np.sin(omega * t))
+    np.testing.assert_allclose(e, exact, atol=1e-13)
+
+
+def test_a_pressed_link_settles_where_flexure_and_contact_balance():
+    """At rest k e = kn (d - e)^p: the flexure in series with the Hertz contact."""
+    flexures = Flexures(TPU, 2, 1e-3)
+    bottom, top = np.array([0.002, -0.01]), np.array([-0.01, 0.003])
+    for _ in range(300):
+        e, fb, ft = drive(flexures, bottom, top)
+    # Link 0 pressed up from below, link 1 down from above.
+    assert e[0] > 0 > e[1]
+    assert TPU.stiffness * e[0] == pytest.approx(KN * (0.002 - e[0]) ** 1.5, rel=1e-8)
+    assert -TPU.stiffness * e[1] == pytest.approx(KN * (0.003 + e[1]) ** 1.5, rel=1e-8)
+    np.testing.assert_allclose(flexures.reaction, [fb[0], -ft[1]], rtol=1e-6)
+
+
+def test_both_tips_touching_balance_one_link():
+    """A link squeezed between both walls: one deflection, both contacts, exact balance."""
+    flexures = Flexures(TPU, 1, 1e-3)
+    e, fb, ft = np.empty(1), np.empty(1), np.empty(1)
+    free = np.array([2e-4])
+    balance_links(np.array([0.002]), np.array([0.001]), free, flexures.compliance, KN, EXPONENT,
+                  e, fb, ft)
+    assert fb[0] > 0 and ft[0] > 0
+    assert e[0] == pytest.approx(free[0] + flexures.compliance * (fb[0] - ft[0]), abs=1e-12)
+
+
+@pytest.mark.parametrize('frequency', [12.0, 60.0])
+def test_a_harmonically_pressed_link_follows_the_closed_form(frequency):
+    """
+    Target d0 + a sin(w t) into a linear contact: steady e and reaction against the closed form.
+
+    The only error is holding the contact load over a step: first order in dt, so halving the
+    step halves it (the measured error at the simulator's 1 ms is the docs' figure).
+    """
+    contact, d0, a = 1000.0, 0.002, 0.0005
+    errors = []
+    for dt in (1e-3, 5e-4, 2.5e-4):
+        flexures = Flexures(TPU, 1, dt)
+        steps = int(round(1.0 / dt))
+        w = 2 * math.pi * frequency
+        t = dt * np.arange(1, steps + 1)
+        e_out, r_out = np.empty(steps), np.empty(steps)
+        for i in range(steps):
+            drive(flexures, np.array([d0 + a * math.sin(w * t[i])]), np.array([-1.0]),
+                  contact, 1.0)
+            e_out[i], r_out[i] = flexures.deflection[0], flexures.reaction[0]
+        late = t > 0.5              # the transient has decayed (c / 2m = 62 /s)
+        basis = np.exp(-1j * w * t[late])
+        amplitude = 2 * np.mean(e_out[late] * basis) / a / 1j * -1
+        e_ratio, _ = transmissibility(frequency, TPU.stiffness, TPU.damping, TPU.link_mass,
+                                      contact)
+        errors.append(abs(amplitude - e_ratio) / abs(e_ratio))
+        # The reaction's mean is the contact's static share: k e = kc (d0 - e).
+        static = contact * d0 / (TPU.stiffness + contact)
+        assert np.mean(r_out[late]) == pytest.approx(TPU.stiffness * static, rel=1e-3)
+    assert errors[-1] < 0.01
+    assert errors[0] / errors[1] == pytest.approx(4.0, rel=0.25)
+    assert errors[1] / errors[2] == pytest.approx(4.0, rel=0.25)
+
+
+def test_rigid_flexures_pass_the_contact_load_as_rigid_links():
+    """At the top of the range the link does not move and the backbone feels the Hertz load."""
+    rigid = FlexureParams(stiffness=1e9, damping=0.0, link_mass=0.004)
+    flexures = Flexures(rigid, 1, 1e-3)
+    for i in range(200):
+        depth = 0.002 + 0.0005 * math.sin(2 * math.pi * 12 * i * 1e-3)
+        e, fb, _ = drive(flexures, np.array([depth]), np.array([-1.0]))
+        assert abs(flexures.deflection[0]) < 1e-8
+        assert flexures.reaction[0] == pytest.approx(KN * depth ** 1.5, rel=2e-4)
+
+
+def test_the_backbone_gets_the_loads_impulse_less_the_links_momentum():
+    dt = 1e-3
+    flexures = Flexures(TPU, 3, dt)
+    loads = np.array([0.3, -0.2, 0.0])
+    impulse = np.zeros(3)
+    for i in range(50):
+        flexures.advance(loads * math.cos(0.3 * i))
+        impulse += flexures.reaction * dt
+        if i == 0:
+            first_rate = flexures.rate.copy()
+    held = sum(loads * math.cos(0.3 * i) * dt for i in range(50))
+    np.testing.assert_allclose(impulse, held - TPU.link_mass * flexures.rate, atol=1e-15)
+    assert np.abs(first_rate).max() > 0
+    assert flexures.energy() > 0
+
+
+def test_rigid_links_are_not_flexures():
+    with pytest.raises(ValueError, match='rigid links'):
+        Flexures(FlexureParams(), 19, 1e-3)
