@@ -3,12 +3,15 @@ import os
 
 import pytest
 
-from saw_ros.graph.process import isolated_ros_env, ManagedProcess, wait_for  # noqa: F401
+from saw_ros.graph.process import (isolated_ros_env, ManagedProcess, reserve_domain,  # noqa: F401
+                                   wait_for)
 
-# Isolate DDS for the whole run before anything imports rclpy: a reserved domain keeps concurrent
-# runs apart, LOCALHOST keeps traffic on this machine.
+# Isolate DDS for the whole run before anything imports rclpy: a domain reserved for as long as
+# this process runs keeps concurrent runs apart, and the workers of a parallel run (pytest-xdist:
+# each worker is a process that imports this file) from one another; LOCALHOST keeps traffic on
+# this machine.
 if not os.environ.get('DISABLE_ROS_ISOLATION'):
-    os.environ.update(isolated_ros_env())
+    os.environ.update(isolated_ros_env(reserve_domain(keep=True)))
 
 
 @pytest.fixture

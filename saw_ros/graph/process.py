@@ -27,21 +27,25 @@ DOMAIN_IDS = range(1, 101)
 DOMAIN_LOCKS = Path(tempfile.gettempdir()) / 'saw_ros_domains'
 HELD_DOMAINS = 16            # reservations one process keeps before it reuses its oldest
 _held: 'collections.OrderedDict[int, IO[str]]' = collections.OrderedDict()
+_kept: Dict[int, IO[str]] = {}   # reservations held until the process exits (keep=True)
 
 
-def reserve_domain() -> int:
+def reserve_domain(keep: bool = False) -> int:
     """
     Return a DDS domain id that no other run of ours on this machine holds.
 
-    A random id alone collides between concurrent runs (tests, benchmarks, the main job): the
-    other run's nodes then appear in ours. Each id has a lock file; this process holds the lock of
-    the ids it hands out (the OS releases them when it exits), keeping its HELD_DOMAINS newest.
+    A random id alone collides between concurrent runs (tests, benchmarks, the main job, the
+    workers of a parallel test run): the other run's nodes then appear in ours. Each id has a
+    lock file, as ROS's domain_coordinator has a port; this process holds the lock of the ids it
+    hands out (the OS releases them when it exits), keeping its HELD_DOMAINS newest, and those
+    reserved with ``keep`` for as long as it runs (a pytest worker's own domain, which every test
+    of the worker uses: handed on after 16 graph runs, a second worker could take it).
     """
     DOMAIN_LOCKS.mkdir(exist_ok=True)
     ids = list(DOMAIN_IDS)
     random.shuffle(ids)
     for domain in ids:
-        if domain in _held:
+        if domain in _held or domain in _kept:
             continue
         lock = open(DOMAIN_LOCKS / f'{domain}.lock', 'a')
         try:
@@ -49,10 +53,16 @@ def reserve_domain() -> int:
         except OSError:
             lock.close()
             continue
+        if keep:
+            _kept[domain] = lock
+            return domain
         _held[domain] = lock
         while len(_held) > HELD_DOMAINS:
             _held.popitem(last=False)[1].close()
         return domain
+    if keep:
+        raise RuntimeError(f'every DDS domain id {DOMAIN_IDS.start}-{DOMAIN_IDS.stop - 1} is held '
+                           f'by another run of ours ({DOMAIN_LOCKS}): none left to keep')
     return random.choice(ids)    # every id is taken: share one rather than fail
 
 
