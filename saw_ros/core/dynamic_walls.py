@@ -16,8 +16,10 @@ oscillator
     g_n = weight_n sinc(kappa_n b / 2) sum_j F_j exp(-i kappa_n x_j)
 
 (weight 1 / BAND_LENGTH for n = 0, 2 / BAND_LENGTH else; the tips' loads F_j spread over the
-contact width b), stepped exactly over dt with its load held (the 2 x 2 matrix exponential of
-each mode: unconditionally stable at any stiffness, no numerical damping). The wall is
+contact width b), stepped exactly over dt under a load ramping linearly from the last step's
+to this step's (a first-order hold: the 2 x 2 matrix exponential of each mode plus the ramp's
+particular solution; unconditionally stable at any stiffness, no numerical damping, second
+order in dt for a load that moves). The wall is
 
     w(x) = w_quasi_static(F)(x) + Re sum_n (z_n - g_n / K_n) exp(i kappa_n x):
 
@@ -28,10 +30,11 @@ relaxes towards it: a Kelvin-Voigt foundation). The modes beyond the band's last
 keep their quasi-static share (the closed form holds all of it), so the truncation costs only
 the dynamic correction of wavenumbers far beyond the foundation's beta = (k / 4 EI)^(1/4).
 
-Coupling (used when the step is coupled): with the loads held at their step-end values, the
-deflection at the tips after the step is linear in them, w = free + G F, G = G_quasi_static - H,
-H_ij = sum_n Phi00_n weight_n sinc_n / K_n cos(kappa_n (x_i - x_j)) (``DynamicWall.compliance``),
-so the same Newton solve as core.walls balances it with the contact law.
+Coupling (used when the step is coupled): the deflection at the tips after the step is linear
+in the step-end loads, w = free + G F, G = G_quasi_static - H, H_ij = sum_n h_n weight_n sinc_n
+cos(kappa_n (x_i - x_j)) (h_n what a unit step-end load takes from mode n's correction,
+``DynamicWall.compliance``), so the same Newton solve as core.walls balances it with the
+contact law.
 
 Kernels: numba-compiled loops over plain arrays into preallocated outputs (the compiled core's
 style); the class holds the state and the constants.
@@ -88,18 +91,33 @@ def _project(forces: np.ndarray, x: np.ndarray, kappa1: float, shape: np.ndarray
 
 
 @compiled
-def _advance(g_re: np.ndarray, g_im: np.ndarray, stiffness: np.ndarray, phi: np.ndarray,
-             z_re: np.ndarray, z_im: np.ndarray, v_re: np.ndarray, v_im: np.ndarray) -> None:
-    """Step every mode exactly over dt with its load g held: (z - g/K, v) <- Phi (z - g/K, v)."""
+def _advance(start_re: np.ndarray, start_im: np.ndarray, end_re: np.ndarray,
+             end_im: np.ndarray, stiffness: np.ndarray, damping: float, dt: float,
+             phi: np.ndarray, z_re: np.ndarray, z_im: np.ndarray, v_re: np.ndarray,
+             v_im: np.ndarray) -> None:
+    """
+    Step every mode exactly over dt under its load ramping from ``start`` to ``end``.
+
+    The ramp g(t) = g0 + g' t has the particular solution g(t) / K - c g' / K^2; the rest
+    (z - that, z' - g' / K) is advanced by Phi.
+    """
     for n in range(stiffness.size):
-        rest_re = g_re[n] / stiffness[n]
-        rest_im = g_im[n] / stiffness[n]
-        u_re = z_re[n] - rest_re
-        u_im = z_im[n] - rest_im
-        z_re[n] = rest_re + phi[0, n] * u_re + phi[1, n] * v_re[n]
-        z_im[n] = rest_im + phi[0, n] * u_im + phi[1, n] * v_im[n]
-        v_re[n] = phi[2, n] * u_re + phi[3, n] * v_re[n]
-        v_im[n] = phi[2, n] * u_im + phi[3, n] * v_im[n]
+        k = stiffness[n]
+        for part in range(2):
+            if part == 0:
+                g0, g1, z, v = start_re[n], end_re[n], z_re[n], v_re[n]
+            else:
+                g0, g1, z, v = start_im[n], end_im[n], z_im[n], v_im[n]
+            slope = (g1 - g0) / dt
+            shift = damping * slope / (k * k)
+            u = z - g0 / k + shift
+            w = v - slope / k
+            z = g1 / k - shift + phi[0, n] * u + phi[1, n] * w
+            v = slope / k + phi[2, n] * u + phi[3, n] * w
+            if part == 0:
+                z_re[n], v_re[n] = z, v
+            else:
+                z_im[n], v_im[n] = z, v
 
 
 @compiled
@@ -172,7 +190,7 @@ def mode_propagator(stiffness: np.ndarray, mass: float, damping: float,
 
 class DynamicWall:
     """
-    One wall with mass and damping (module docstring), stepped under loads held over each step.
+    One wall with mass and damping (module docstring), stepped under loads ramping over a step.
 
     ``foundation`` k N/m^2, ``bending`` EI N m^2, ``width`` b m (the contact width), ``mass``
     m kg/m, ``damping`` c N s/m^2, ``dt`` s.
@@ -201,12 +219,15 @@ class DynamicWall:
         # weight_n sinc(kappa_n b / 2) (np.sinc(u) is sin(pi u) / (pi u))
         self.shape = weight * np.sinc(kappa * width / (2.0 * math.pi))
         self.phi = mode_propagator(self.stiffness, mass, damping, dt)
-        # What a newton held at a tip puts into each mode's correction after the step, m/N:
-        # the correction z - g/K starts the step at -g/K (compliance).
-        self._held_gain = self.phi[0] * self.shape / self.stiffness
+        # What a newton of step-end load at a tip takes from each mode's correction z - g/K
+        # after the step, m/N (compliance): the ramp's -c g'/K^2 and its homogeneous rest.
+        k, p = self.stiffness, self.phi
+        self._held_gain = (damping * (1.0 - p[0]) / (k * dt) + p[1] / dt) / k * self.shape
         self.z_re, self.z_im = np.zeros(modes), np.zeros(modes)      # m
         self.v_re, self.v_im = np.zeros(modes), np.zeros(modes)      # m/s
-        self.g_re, self.g_im = np.zeros(modes), np.zeros(modes)      # the held loads, N/m
+        self.g_re, self.g_im = np.zeros(modes), np.zeros(modes)      # step-end loads, N/m
+        self._start_re, self._start_im = np.zeros(modes), np.zeros(modes)
+        self._zeros = np.zeros(modes)
         self.loads = np.zeros(0)                                      # N
         self.at = np.zeros(0)                                         # m
         self.work = 0.0           # done by the loads on the band's modes, J
@@ -220,21 +241,26 @@ class DynamicWall:
         return out
 
     def step(self, loads: ArrayLike, at: ArrayLike) -> None:
-        """Advance one dt under the tips' ``loads`` (N, > 0 away) held at ``at`` (m)."""
+        """Advance one dt to the tips' ``loads`` (N, > 0 away) at ``at`` (m), from the last."""
         self.loads = np.array(loads, float)
         self.at = np.array(at, float)
         z_re, z_im = self.z_re.copy(), self.z_im.copy()
         power_before = self._dissipation_rate()
+        self._start_re[:], self._start_im[:] = self.g_re, self.g_im
         _project(self.loads, self.at, self.kappa1, self.shape, self.g_re, self.g_im)
         if self.mass == 0.0 and self.damping == 0.0:      # the modes follow their loads at once
             np.divide(self.g_re, self.stiffness, out=self.z_re)
             np.divide(self.g_im, self.stiffness, out=self.z_im)
         else:
-            _advance(self.g_re, self.g_im, self.stiffness, self.phi, self.z_re, self.z_im,
-                     self.v_re, self.v_im)
-        # The work of a load held over the step on an exactly stepped mode: g . dz, per mode.
-        self.work += float(self.weights @ (self.g_re * (self.z_re - z_re)
-                                           + self.g_im * (self.z_im - z_im)))
+            _advance(self._start_re, self._start_im, self.g_re, self.g_im, self.stiffness,
+                     self.damping, self.dt, self.phi, self.z_re, self.z_im, self.v_re,
+                     self.v_im)
+        # The work of the loads over the step, g . dz per mode, g the step's mean load (the
+        # ramp's work to third order in dt).
+        mean_re = 0.5 * (self._start_re + self.g_re)
+        mean_im = 0.5 * (self._start_im + self.g_im)
+        self.work += float(self.weights @ (mean_re * (self.z_re - z_re)
+                                           + mean_im * (self.z_im - z_im)))
         self.dissipated += 0.5 * self.dt * (power_before + self._dissipation_rate())
 
     def _dissipation_rate(self) -> float:
@@ -265,19 +291,25 @@ class DynamicWall:
 
     def free_deflection(self, x: ArrayLike) -> np.ndarray:
         """
-        Return the correction at ``x`` after a step under no loads (m): the free part of w.
+        Return the correction at ``x`` after a step whose loads ramp to none (m): the free part.
 
-        The deflection after a step under loads F held at ``x`` is this plus
-        ``compliance(x) @ F`` (module docstring).
+        The deflection after a step to loads F at ``x`` is this plus ``compliance(x) @ F``
+        (module docstring).
         """
         x = np.atleast_1d(np.asarray(x, float))
         out = np.empty(x.size)
-        _synthesise(self.phi[0] * self.z_re + self.phi[1] * self.v_re,
-                    self.phi[0] * self.z_im + self.phi[1] * self.v_im, self.kappa1, x, out)
+        z_re, z_im = self.z_re.copy(), self.z_im.copy()
+        if self.mass == 0.0 and self.damping == 0.0:
+            z_re[:], z_im[:] = 0.0, 0.0
+        else:
+            _advance(self.g_re, self.g_im, self._zeros, self._zeros, self.stiffness,
+                     self.damping, self.dt, self.phi, z_re, z_im, self.v_re.copy(),
+                     self.v_im.copy())
+        _synthesise(z_re, z_im, self.kappa1, x, out)
         return out
 
     def compliance(self, x: ArrayLike) -> np.ndarray:
-        """Return G (m, m), m/N: the deflection at x_i after the step per newton held at x_j."""
+        """Return G (m, m), m/N: the deflection at x_i after the step per step-end N at x_j."""
         x = np.atleast_1d(np.asarray(x, float))
         r = x[:, None] - x[None, :]
         g = quasi_static_deflection(r, 1.0, self.foundation, self.bending, self.width)

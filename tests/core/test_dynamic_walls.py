@@ -94,11 +94,12 @@ def test_the_energy_of_a_run_balances_the_work_of_the_loads():
                   [0.0, 0.011 + 0.02 * t])
     assert wall.work > 0
     assert wall.energy() + wall.dissipated == pytest.approx(wall.work, rel=2e-3)
-    # Undamped, the step is exact: the balance holds to rounding.
+    # Undamped, all the work is held (the work is taken at each step's mean load: second order
+    # in dt over a run, 2e-4 of it here, 1.7e-2 at a step ten times as long).
     wall = DynamicWall(K, EI, 0.005, M, 0.0, dt)
     for i in range(1, 501):
         wall.step([1.0 + 0.5 * math.sin(2 * math.pi * 12 * i * dt)], [0.0])
-    assert wall.energy() == pytest.approx(wall.work, rel=1e-9)
+    assert wall.energy() == pytest.approx(wall.work, rel=5e-4)
 
 
 def test_a_massless_wall_is_the_quasi_static_wall():
