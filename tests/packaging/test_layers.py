@@ -57,6 +57,31 @@ def test_imports_point_down_only(layer):
     assert not wrong, '\n'.join(wrong)
 
 
+def ros_imports(path: Path):
+    """Every import of a ROS module (or a *_msgs package) in a file, at the top or in a function."""
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        else:
+            continue
+        for name in names:
+            top = name.split('.')[0]
+            if top in ROS_MODULES or top.endswith('_msgs'):
+                yield node.lineno, name
+
+
+@pytest.mark.parametrize('layer', PURE)
+def test_pure_layers_import_no_rclpy_even_inside_a_function(layer):
+    # What the next test cannot see: an import that runs only when a command needs it (saw-ros
+    # bag record checked topic names with rclpy so, which a machine without ROS could not run).
+    wrong = [f'{path.relative_to(PACKAGE.parent)}:{line} imports {name}'
+             for path in sorted((PACKAGE / layer).rglob('*.py'))
+             for line, name in ros_imports(path)]
+    assert not wrong, '\n'.join(wrong)
+
+
 def test_pure_layers_import_no_rclpy():
     code = f"""
 import importlib, pkgutil, sys

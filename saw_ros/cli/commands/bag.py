@@ -127,14 +127,11 @@ def _open(bag):
 
 
 def _check_topic_name(name: str) -> None:
-    """Refuse a topic name ROS would refuse, before the recorder starts."""
-    from rclpy.exceptions import InvalidTopicNameException
-    from rclpy.validate_topic_name import validate_topic_name
-    try:
-        validate_topic_name(name)
-    except InvalidTopicNameException as exc:
-        reason = str(exc).splitlines()[0]
-        raise UserError(f'topic {name!r}: not a valid ROS topic name ({reason})') from None
+    """Refuse a topic name ROS would refuse, before the recorder starts (rcl's rules, no rclpy)."""
+    from saw_ros.interface.names import topic_name_problem
+    problem = topic_name_problem(name)
+    if problem is not None:
+        raise UserError(f'topic {name!r}: not a valid ROS topic name ({problem})')
 
 
 def run(args):
