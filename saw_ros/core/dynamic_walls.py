@@ -154,15 +154,38 @@ def _held_compliance(x: np.ndarray, kappa1: float, gain: np.ndarray, out: np.nda
             out[j, i] = total
 
 
+@compiled
+def oscillator_step(stiffness: float, mass: float, damping: float, dt: float) -> np.ndarray:
+    """
+    Return Phi (4,): the exact step over ``dt`` of m u'' + c u' + K u = 0, m > 0.
+
+    Phi00, Phi01, Phi10, Phi11 of exp(A dt), A = [[0, 1], [-K/m, -c/m]]: with the mean
+    eigenvalue l = -c / 2m and d = sqrt(l^2 - K/m), exp(A t) = exp(l t) (cosh(d t) I +
+    sinh(d t) / d (A - l I)), from the two exponentials exp((l +- d) t) so that stiff,
+    overdamped modes do not overflow.
+    """
+    mean = -damping / (2.0 * mass)
+    split = np.sqrt(complex(mean * mean - stiffness / mass))
+    e1, e2 = np.exp((mean + split) * dt), np.exp((mean - split) * dt)
+    even = (e1 + e2) / 2.0                                # exp(l t) cosh(d t)
+    if abs(split * dt) < 1e-6:                            # exp(l t) sinh(d t) / d
+        odd = dt * np.exp(mean * dt) + 0j
+    else:
+        odd = (e1 - e2) / (2.0 * split)
+    phi = np.empty(4)
+    phi[0] = (even - mean * odd).real
+    phi[1] = odd.real
+    phi[2] = (-stiffness / mass * odd).real
+    phi[3] = (even + (-damping / mass - mean) * odd).real
+    return phi
+
+
 def mode_propagator(stiffness: np.ndarray, mass: float, damping: float,
                     dt: float) -> np.ndarray:
     """
     Return Phi (4, N): the exact step over ``dt`` of m u'' + c u' + K u = 0, per mode.
 
-    Rows Phi00, Phi01, Phi10, Phi11 of exp(A dt), A = [[0, 1], [-K/m, -c/m]]: with the mean
-    eigenvalue l = -c / 2m and d = sqrt(l^2 - K/m), exp(A t) = exp(l t) (cosh(d t) I +
-    sinh(d t) / d (A - l I)), from the two exponentials exp((l +- d) t) so that stiff,
-    overdamped modes do not overflow. Without mass a damped mode relaxes, c u' + K u = 0:
+    ``oscillator_step`` of each mode. Without mass a damped mode relaxes, c u' + K u = 0:
     u <- exp(-K dt / c) u and u' = -K u / c; without mass or damping it has no dynamics (all
     zeros: it sits at its load's rest).
     """
@@ -173,19 +196,7 @@ def mode_propagator(stiffness: np.ndarray, mass: float, damping: float,
             phi[0] = np.exp(-k * dt / damping)
             phi[2] = -k / damping * phi[0]
         return phi
-    mean = -damping / (2.0 * mass)
-    split = np.sqrt(complex(mean * mean) - k / mass + 0j)
-    e1, e2 = np.exp((mean + split) * dt), np.exp((mean - split) * dt)
-    even = (e1 + e2) / 2.0                                # exp(l t) cosh(d t)
-    small = np.abs(split * dt) < 1e-6
-    odd = np.where(small, dt * np.exp(mean * dt),         # exp(l t) sinh(d t) / d
-                   (e1 - e2) / (2.0 * np.where(small, 1.0, split)))
-    phi = np.empty((4, k.size))
-    phi[0] = (even - mean * odd).real
-    phi[1] = odd.real
-    phi[2] = (-k / mass * odd).real
-    phi[3] = (even + (-damping / mass - mean) * odd).real
-    return phi
+    return np.stack([oscillator_step(float(x), mass, damping, dt) for x in k], axis=1)
 
 
 class DynamicWall:

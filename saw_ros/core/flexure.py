@@ -36,7 +36,7 @@ from typing import Tuple
 
 import numpy as np
 
-from saw_ros.core.dynamic_walls import compiled, mode_propagator
+from saw_ros.core.dynamic_walls import compiled, mode_propagator, oscillator_step
 from saw_ros.core.params import FlexureParams
 
 # The link solve (balance_links): Newton safeguarded by bisection on each link's deflection,
@@ -184,3 +184,31 @@ def transmissibility(frequency: float, stiffness: float, damping: float, mass: f
     w = 2.0 * math.pi * frequency
     e = contact / (stiffness + contact - mass * w * w + 1j * w * damping)
     return e, (stiffness + 1j * w * damping) * e
+
+
+@compiled
+def replay_links(bottom: np.ndarray, top: np.ndarray, stiffness: float, damping: float,
+                 mass: float, dt: float, normal_stiffness: float, exponent: float,
+                 reaction: np.ndarray, deflection: np.ndarray) -> None:
+    """
+    Drive n flexure links through T steps of prescribed tip penetrations (T, n); fill (T, n).
+
+    The open-loop use of the flexures: the targets' penetrations into rigid walls are those of
+    a run of the rigid robot, the body's motion held to that run; each step balances every link
+    against its elastic contacts (``balance_links``) and advances it (``Flexures.advance``).
+    ``reaction`` gets what the backbone feels (N, + y), ``deflection`` e (m).
+    """
+    phi = oscillator_step(stiffness, mass, damping, dt)
+    k, c = stiffness, damping
+    compliance = 1.0 / k - c / (k * k * dt) * (1.0 - phi[0]) - phi[1] / (k * dt)
+    n = bottom.shape[1]
+    e, rate, load = np.zeros(n), np.zeros(n), np.zeros(n)
+    free, solved = np.empty(n), np.empty(n)
+    fb, ft, out = np.empty(n), np.empty(n), np.empty(n)
+    for step in range(bottom.shape[0]):
+        _free(e, rate, load, k, c, dt, phi, free)
+        balance_links(bottom[step], top[step], free, compliance, normal_stiffness, exponent,
+                      solved, fb, ft)
+        _advance(fb - ft, k, c, mass, dt, phi, load, e, rate, out)
+        reaction[step] = out
+        deflection[step] = e

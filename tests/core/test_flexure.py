@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.core.flexure import balance_links, Flexures, transmissibility
+from saw_ros.core.flexure import balance_links, Flexures, replay_links, transmissibility
 from saw_ros.core.params import FlexureParams
 
 TPU = FlexureParams(stiffness=2000.0, damping=0.5, link_mass=0.004)     # docs/model.md, TPU
@@ -123,3 +123,23 @@ def test_the_backbone_gets_the_loads_impulse_less_the_links_momentum():
 def test_rigid_links_are_not_flexures():
     with pytest.raises(ValueError, match='rigid links'):
         Flexures(FlexureParams(), 19, 1e-3)
+
+
+def test_replaying_penetrations_matches_the_stepped_flexures_and_rigid_links():
+    """The compiled replay is the Flexures class step by step; rigid, it returns the loads."""
+    t = 1e-3 * np.arange(300)
+    phase = 2 * math.pi * 12 * t[:, None] + np.linspace(0, 2 * math.pi, 4)[None, :]
+    bottom = np.ascontiguousarray(0.002 * np.sin(phase))
+    top = np.ascontiguousarray(0.002 * np.sin(phase + math.pi))
+    reaction, deflection = np.empty_like(bottom), np.empty_like(bottom)
+    replay_links(bottom, top, TPU.stiffness, TPU.damping, TPU.link_mass, 1e-3, KN, EXPONENT,
+                 reaction, deflection)
+    flexures = Flexures(TPU, 4, 1e-3)
+    for i in range(len(t)):
+        drive(flexures, bottom[i], top[i])
+        np.testing.assert_allclose(flexures.reaction, reaction[i], rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(flexures.deflection, deflection[i], rtol=1e-9, atol=1e-15)
+    replay_links(bottom, top, 1e9, 0.0, TPU.link_mass, 1e-3, KN, EXPONENT, reaction,
+                 deflection)
+    loads = KN * np.maximum(bottom, 0) ** 1.5 - KN * np.maximum(top, 0) ** 1.5
+    np.testing.assert_allclose(reaction, loads, atol=2e-3 * np.abs(loads).max())
