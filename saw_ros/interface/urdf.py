@@ -5,19 +5,26 @@ The robot's URDF, generated from the core's parameters (pure: no rclpy).
 (``python -m saw_ros.interface.urdf --write urdf/saw.urdf``; tests/interface/test_urdf.py pins
 it); the simulator publishes the URDF of the robot it simulates on ``/robot_description``.
 
-Its joints are exactly the names of ``/saw/joint_states`` (``helix``, ``base_link_joint``,
-``link_00``..), each moving the link of the same name, so robot_state_publisher (remapped to
-/saw/joint_states) and RViz's RobotModel draw the wave turning. Frames as saw_ros.interface.frames
-and the core's body frame (saw_ros.core.kinematics): ``base_link`` at the centre of mass, x
-forward, y normal to the surfaces, z out of the side view.
+Its joints are exactly the names of ``/saw/joint_states`` (``joint_names``), each moving the
+link of the same name, so robot_state_publisher (remapped to /saw/joint_states) and RViz's
+RobotModel draw every link where the core puts it: the wave's motion in the plane, not only its
+turning. Frames as saw_ros.interface.frames and the core's body frame (saw_ros.core.kinematics):
+``base_link`` at the centre of mass, x forward, y normal to the surfaces, z out of the side view.
 
 - ``helix``: continuous, about x, at the wave's middle; its position is the wave phase.
 - ``base_link_joint``: revolute about -z at the hinge on the head (the core's base-link angle is
   positive with the rear end up); the base link reaches back ``base_link_width``.
-- ``link_NN``: revolute about z at the link centre's body abscissa, angle = the backbone slope
-  there (the core's link angle, relative to body x). What a joint-state model cannot say: the
-  centres also rise and fall with the wave (A cos(...)), so in the URDF the links turn on the
-  axis; ``/saw/markers`` draws them at their true heights.
+- each wave link NN, a chain of three joints from ``base_link``, all motion in the plane
+  (robot_state_publisher has no planar joint: KDL reads URDF's ``planar`` as fixed):
+  ``link_NN_x`` prismatic along body x from the centre's rest abscissa (0 in the kinematic
+  model, where the centres keep their abscissa), ``link_NN_y`` prismatic along body y (the
+  centre's height on the wave, A cos(...)), ``link_NN`` revolute about z (the backbone slope
+  there, the core's link angle relative to body x). The first two move the frameless links
+  ``link_NN_x`` and ``link_NN_y``; ``link_NN`` carries the drawing.
+
+``link_frames`` gives every frame of the tree at a phase from the core's ``link_geometry`` (the
+simulator's own TF, without robot_state_publisher); ``JointStateTable`` the joint values at
+1 kHz from a table of the same (docs/viewers.md).
 """
 from __future__ import annotations
 
@@ -25,9 +32,11 @@ import argparse
 import math
 from pathlib import Path
 import sys
-from typing import List, Optional
+from typing import List, Optional, Tuple
 
-from saw_ros.core.kinematics import hinge_x
+import numpy as np
+
+from saw_ros.core.kinematics import cycle_phases, hinge_x, link_geometry, PhaseTable
 from saw_ros.core.params import RobotParams
 
 NAME = 'saw'
@@ -35,13 +44,94 @@ NAME = 'saw'
 DEPTH = 0.04
 
 
+def link_names(robot: RobotParams) -> List[str]:
+    """Return the wave links' names, head first (the core's link order)."""
+    return [f'link_{i:02d}' for i in range(robot.wave_links)]
+
+
 def joint_names(robot: RobotParams) -> List[str]:
-    """Return the joints of the URDF, in /saw/joint_states' order."""
-    return ['helix', 'base_link_joint'] + [f'link_{i:02d}' for i in range(robot.wave_links)]
+    """
+    Return the joints of the URDF, in /saw/joint_states' order.
+
+    The helix, the base link, every wave link's angle, then every link's position along x, then
+    along y: the first 2 + n are those of the earlier, angle-only model, at the same places.
+    """
+    links = link_names(robot)
+    return (['helix', 'base_link_joint'] + links + [f'{n}_x' for n in links]
+            + [f'{n}_y' for n in links])
+
+
+def rest_abscissae(robot: RobotParams) -> np.ndarray:
+    """Return each wave link centre's body abscissa at phase 0 (its joint's origin), m."""
+    return np.asarray(link_geometry(robot, 0.0).centres.real, dtype=float)
+
+
+# A frame of the robot's tree: parent, child, translation (m), rotation quaternion (x, y, z, w).
+Frame = Tuple[str, str, Tuple[float, float, float], Tuple[float, float, float, float]]
+
+
+def link_frames(robot: RobotParams, phase: float) -> List[Frame]:
+    """
+    Return every joint's frame below ``base_link`` at wave ``phase``, from the core's geometry.
+
+    The transforms robot_state_publisher computes from the URDF and exact joint values: helix,
+    base link, and per wave link ``link_NN_x``, ``link_NN_y``, ``link_NN``.
+    """
+    geo = link_geometry(robot, phase)
+    zero = (0.0, 0.0, 0.0)
+    half, base = 0.5 * phase, 0.5 * float(geo.base_angle)     # half angles (quaternions)
+    frames: List[Frame] = [
+        ('base_link', 'helix', (_helix_x(robot), 0.0, 0.0),
+         (math.sin(half), 0.0, 0.0, math.cos(half))),
+        ('base_link', 'base_link_joint', (geo.hinge.real, geo.hinge.imag, 0.0),
+         (0.0, 0.0, -math.sin(base), math.cos(base)))]      # about -z, as its joint's axis
+    for name, centre, angle in zip(link_names(robot), geo.centres.tolist(), geo.angles.tolist()):
+        frames += [('base_link', f'{name}_x', (float(centre.real), 0.0, 0.0),
+                    (0.0, 0.0, 0.0, 1.0)),
+                   (f'{name}_x', f'{name}_y', (0.0, float(centre.imag), 0.0),
+                    (0.0, 0.0, 0.0, 1.0)),
+                   (f'{name}_y', name, zero, (0.0, 0.0, math.sin(0.5 * angle),
+                                              math.cos(0.5 * angle)))]
+    return frames
+
+
+class JointStateTable(PhaseTable):
+    """
+    The joint values of /saw/joint_states after the helix, over one wave cycle (``joint_names``).
+
+    Columns: base-link angle, link angles (rad), link centres along x from their rest abscissa
+    and along y (m), all from the core's ``link_geometry``. Linear interpolation over 4096
+    samples: within 1e-5 rad (the base link's angle, solved by Newton iterations in the core)
+    and 1e-8 m; the simulator's TF uses the exact geometry (``link_frames``).
+    """
+
+    def __init__(self, robot: RobotParams, samples: int = 4096):
+        """Tabulate ``robot``'s joint values at ``samples`` phases over a cycle."""
+        geo = link_geometry(robot, cycle_phases(samples))
+        rest = rest_abscissae(robot)
+        super().__init__(np.concatenate([geo.base_angle[:, None], geo.angles,
+                                         geo.centres.real - rest, geo.centres.imag], axis=1),
+                         samples)
+        self.derivative = self.slopes * self.scale      # d value / d phase, per sample
+
+    def values_and_rates(self, phase: float,
+                         omega: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Return the joint values after the helix and their rates at ``phase``.
+
+        ``phase`` is wrapped into [0, 2 pi); rates (rad/s, m/s) are for helix speed ``omega``.
+        """
+        i, w = self.index(phase % (2.0 * math.pi))
+        return self.points[i] + w * self.slopes[i], self.derivative[i] * omega
+
+
+def _helix_x(robot: RobotParams) -> float:
+    """Return the helix joint's abscissa: the middle of the wave links."""
+    return hinge_x(robot) - robot.base_link_width - robot.wave_links * robot.link / 2.0
 
 
 def _f(value: float) -> str:
-    return f'{value:.6g}'
+    return f'{value:.9g}'   # nm: the joint origins must not move a link a visible 1e-7 m
 
 
 def _xyz(*values: float) -> str:
@@ -65,7 +155,6 @@ def urdf(robot: Optional[RobotParams] = None) -> str:
     wave = robot.wave_links * b
     k = 2.0 * math.pi / robot.wavelength
     steepest = math.atan(robot.amplitude * k)       # largest backbone slope, rad
-    tail = hinge - robot.base_link_width             # where the wave's first link begins
     lines = ['<?xml version="1.0"?>',
              '<!-- Generated by saw_ros.interface.urdf from saw_ros.core.params.RobotParams '
              f'(mass {_f(robot.mass)} kg, length {_f(robot.length)} m, {robot.wave_links} wave '
@@ -90,7 +179,7 @@ def urdf(robot: Optional[RobotParams] = None) -> str:
     lines += ['  <joint name="helix" type="continuous">',
               '    <parent link="base_link"/>',
               '    <child link="helix"/>',
-              f'    <origin xyz="{_xyz(tail - wave / 2.0, 0.0, 0.0)}" rpy="0 0 0"/>',
+              f'    <origin xyz="{_xyz(_helix_x(robot), 0.0, 0.0)}" rpy="0 0 0"/>',
               '    <axis xyz="1 0 0"/>',
               '  </joint>',
               '  <link name="helix">',
@@ -113,24 +202,32 @@ def urdf(robot: Optional[RobotParams] = None) -> str:
     lines += _box(robot.base_link_width, 2.0 * robot.tip_distance,
                   -robot.base_link_width / 2.0, 'link')
     lines += ['  </link>']
-    for i, name in enumerate(joint_names(robot)[2:]):
-        x = tail - b * (i + 0.5)
-        lines += [f'  <joint name="{name}" type="revolute">',
-                  '    <parent link="base_link"/>',
-                  f'    <child link="{name}"/>',
-                  f'    <origin xyz="{_xyz(x, 0.0, 0.0)}" rpy="0 0 0"/>',
-                  '    <axis xyz="0 0 1"/>',
-                  f'    <limit lower="{_f(-steepest)}" upper="{_f(steepest)}" effort="0" '
-                  'velocity="0"/>',
-                  '  </joint>',
-                  f'  <link name="{name}">']
-        lines += _box(b, 2.0 * robot.tip_distance, 0.0, 'link')
-        lines += ['  </link>']
+    # Each wave link: along x (a link may move half its width either way: room for a compliant
+    # model's deflection), along y (the wave's crest and trough, and as much again), turning.
+    for name, x in zip(link_names(robot), rest_abscissae(robot).tolist()):
+        for suffix, parent, axis, origin, low, high in (
+                ('_x', 'base_link', '1 0 0', x, -b / 2.0, b / 2.0),
+                ('_y', f'{name}_x', '0 1 0', 0.0, -2.0 * robot.amplitude, 2.0 * robot.amplitude),
+                ('', f'{name}_y', '0 0 1', 0.0, -steepest, steepest)):
+            lines += [f'  <joint name="{name}{suffix}" '
+                      f'type="{"revolute" if suffix == "" else "prismatic"}">',
+                      f'    <parent link="{parent}"/>',
+                      f'    <child link="{name}{suffix}"/>',
+                      f'    <origin xyz="{_xyz(origin, 0.0, 0.0)}" rpy="0 0 0"/>',
+                      f'    <axis xyz="{axis}"/>',
+                      f'    <limit lower="{_f(low)}" upper="{_f(high)}" effort="0" '
+                      'velocity="0"/>',
+                      '  </joint>',
+                      f'  <link name="{name}{suffix}">']
+            if suffix == '':
+                lines += _box(b, 2.0 * robot.tip_distance, 0.0, 'link')
+            lines += ['  </link>']
     lines += ['</robot>', '']
     return '\n'.join(lines)
 
 
 def main(argv: Optional[List[str]] = None) -> int:
+    """Print the default robot's URDF, or write it (``--write``)."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
     parser.add_argument('--write', metavar='PATH', help='write the default robot URDF here')
     args = parser.parse_args(argv)

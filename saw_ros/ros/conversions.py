@@ -136,9 +136,6 @@ def body_axes(fx: float, fy: float, theta: float):
     return c * fx + s * fy, -s * fx + c * fy
 
 
-def joint_names(wave_links: int) -> list:
-    return ['helix', 'base_link_joint'] + [f'link_{i:02d}' for i in range(wave_links)]
-
 # -- the same messages as CDR bytes ---------------------------------------------------------------
 # rclpy converts a Python message to C field by field: 15-40 us per message here, against 2-4 us
 # to publish bytes. At six messages per step the simulator therefore publishes serialized

@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
+from saw_ros.core.params import RobotParams
+from saw_ros.interface import urdf
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from sensor_msgs.msg import Image, JointState
@@ -38,7 +40,7 @@ def test_joint_position_reads_the_named_joint_whatever_the_layout(frame):
 
 
 def test_joint_position_of_the_simulators_encoder():
-    names = conv.joint_names(4)
+    names = urdf.joint_names(RobotParams(wave_links=4))
     encoder = conv.JointStateCdr(names)
     angles = np.linspace(-0.2, 0.2, len(names) - 1)
     data = encoder(1.234, 6.28, angles, np.zeros_like(angles), 7_000_000)

@@ -10,6 +10,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from saw_ros.core import link_geometry, Scenario, Simulator
 from saw_ros.core.kinematics import JointTable
+from saw_ros.interface import urdf
 from saw_ros.ros import conversions as conv
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 
@@ -199,7 +200,7 @@ def test_joint_table_matches_link_geometry():
         ahead, behind = link_geometry(robot, phase + h), link_geometry(robot, phase - h)
         np.testing.assert_allclose(rates[1:], (ahead.angles - behind.angles) / (2 * h)
                                    * 2 * math.pi, atol=1e-2)
-    names = conv.joint_names(robot.wave_links)
+    names = urdf.joint_names(robot)[:2 + robot.wave_links]      # the angles come first
     assert names[:3] == ['helix', 'base_link_joint', 'link_00'] and names[-1] == 'link_18'
     angles, rates = table.angles_and_rates(0.7, 2 * math.pi)
     msg = joint_state_msg(names, 0.7, 2 * math.pi, angles, rates, 3_000_000)
@@ -223,8 +224,8 @@ def test_cdr_encoders_match_rclpy_serialization():
 
     ns = 12_345_000_000
     robot = Scenario().robot
-    names = conv.joint_names(robot.wave_links)
-    angles, rates = JointTable(robot).angles_and_rates(1.3, 2 * math.pi)
+    names = urdf.joint_names(robot)
+    angles, rates = urdf.JointStateTable(robot).values_and_rates(1.3, 2 * math.pi)
     points = _hand_points()
     cases = [
         (conv.clock_cdr(ns), clock_msg(ns), Clock),
@@ -248,8 +249,8 @@ def test_cdr_encoders_match_rclpy_serialization():
 
 
 def test_joint_state_carries_the_motor_torque_as_the_helix_effort():
-    names = conv.joint_names(Scenario().robot.wave_links)
-    angles, rates = JointTable(Scenario().robot).angles_and_rates(0.7, 5.5)
+    names = urdf.joint_names(Scenario().robot)
+    angles, rates = urdf.JointStateTable(Scenario().robot).values_and_rates(0.7, 5.5)
     encode = conv.JointStateCdr(names)
     with_effort = deserialize_message(encode(0.7, 5.5, angles, rates, 3_000_000, 0.042),
                                       JointState)

@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from saw_ros.bag import schema
+from saw_ros.core.kinematics import link_geometry
+from saw_ros.core.params import RobotParams
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
-from saw_ros.interface import frames, share, topics
+from saw_ros.interface import frames, share, topics, urdf
 from saw_ros.ros import conversions as conv
 from saw_ros.ros import tf
 from saw_ros.vision.camera import CameraModel
@@ -62,6 +64,57 @@ def test_the_camera_frame_projects_surface_points_where_the_camera_model_draws_t
     np.testing.assert_allclose(pixels, expected, atol=1e-6)
 
 
+def test_the_tf_encoder_gives_rclpys_message():
+    """tf.message_cdr, the simulator's TF bytes, decodes to the message rclpy would send."""
+    from rclpy.serialization import deserialize_message
+    transforms = [('surface', 'base_link', (0.1, 0.02, 0.0), frames.yaw_quaternion(0.3))]
+    transforms += urdf.link_frames(RobotParams(), 2.0)
+    for some in (transforms, transforms[:1], transforms[:2], transforms[3:4], []):
+        decoded = deserialize_message(tf.message_cdr(some, 1_234_567_891_234), tf.TFMessage)
+        assert decoded == tf.message([tf.transform(parent, child, 1_234_567_891_234, t, q)
+                                      for parent, child, t, q in some])
+
+
+def _planar(t):
+    """Return a transform in the side view as (x + i y, angle about z); it must stay there."""
+    v, q = t.transform.translation, t.transform.rotation
+    assert v.z == 0.0 and q.x == 0.0 and q.y == 0.0
+    return complex(v.x, v.y), 2.0 * math.atan2(q.z, q.w)
+
+
+def _chain(transforms, child):
+    """Return ``child``'s pose in base_link, composing the planar transforms up to base_link."""
+    by_child = {t.child_frame_id: t for t in transforms}
+    position, angle = 0j, 0.0
+    while child != frames.BASE_LINK:
+        t = by_child[child]
+        p, a = _planar(t)
+        position, angle = p + np.exp(1j * a) * position, a + angle
+        child = t.header.frame_id
+    return position, angle
+
+
+def _urdf_pose(model, joints, child):
+    """Return ``child``'s pose in base_link from the URDF and joint values, as RSP computes it."""
+    by_child = {j.child: j for j in model.joints}
+    position, angle = 0j, 0.0
+    while child != frames.BASE_LINK:
+        j = by_child[child]
+        assert j.origin.rpy == [0.0, 0.0, 0.0]
+        offset, turn = complex(*j.origin.xyz[:2]), 0.0
+        if j.type == 'prismatic':
+            offset += joints[j.name] * complex(*j.axis[:2])
+        else:
+            turn = joints[j.name] * j.axis[2]
+        position, angle = offset + np.exp(1j * turn) * position, turn + angle
+        child = j.parent
+    return position, angle
+
+
+def _wrapped(angle):
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
 def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(ros_context,
                                                                                 tmp_path):
     from geometry_msgs.msg import PoseStamped
@@ -73,7 +126,7 @@ def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(
     node = Node('tf_watcher', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
-    got = {'tf': [], 'pose': {}, 'names': [], 'urdf': []}
+    got = {'tf': [], 'pose': {}, 'names': [], 'urdf': [], 'joints': {}}
     reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -81,8 +134,11 @@ def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(
     node.create_subscription(
         PoseStamped, topics.POSE,
         lambda m: got['pose'].__setitem__(conv.stamp_ns(m.header.stamp), m), reliable)
-    node.create_subscription(JointState, topics.JOINT_STATES,
-                             lambda m: got['names'].append(list(m.name)), reliable)
+
+    def joints(m):
+        got['names'].append(list(m.name))
+        got['joints'][conv.stamp_ns(m.header.stamp)] = dict(zip(m.name, m.position))
+    node.create_subscription(JointState, topics.JOINT_STATES, joints, reliable)
     node.create_subscription(String, topics.ROBOT_DESCRIPTION, got['urdf'].append, latched)
     # The simulator waits for a subscriber on each of its step topics (wait_for_subscribers).
     for name, cls in STEP_TOPICS.items():
@@ -98,10 +154,37 @@ def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(
         assert proc.returncode == 0, proc.log_path.read_text()[-2000:]
     finally:
         proc.stop(timeout=5)
-    # 60 Hz of simulated time over 0.5 s, each one transform surface -> base_link at the pose.
+    # 60 Hz of simulated time over 0.5 s, each surface -> base_link at the pose, then every
+    # frame of the URDF (link_tf, on by default) where the core puts it (issue 34: 1e-6 m and
+    # rad), and where robot_state_publisher puts it from /saw/joint_states of the same stamp.
     assert len(got['tf']) == 31, len(got['tf'])
+    robot = RobotParams()
+    model = URDF.from_xml_string(got['urdf'][0].data)
+    worst = {'core_m': 0.0, 'core_rad': 0.0, 'urdf_m': 0.0, 'urdf_rad': 0.0}
     for msg in got['tf']:
-        (t,) = msg.transforms
+        t, *links = msg.transforms
+        assert {x.child_frame_id for x in links} == {link.name for link in model.links} - {
+            frames.BASE_LINK}
+        joints = got['joints'][conv.stamp_ns(t.header.stamp)]
+        geo = link_geometry(robot, joints['helix'])
+        helix = next(x for x in links if x.child_frame_id == 'helix').transform.rotation
+        assert _wrapped(2.0 * math.atan2(helix.x, helix.w) - joints['helix']) == \
+            pytest.approx(0.0, abs=1e-9)
+        core = {'base_link_joint': (geo.hinge, -float(geo.base_angle))}
+        core.update({name: (complex(c), float(a)) for name, c, a in zip(
+            urdf.link_names(robot), geo.centres, geo.angles)})
+        for name, (position, angle) in core.items():
+            p, a = _chain(links, name)
+            worst['core_m'] = max(worst['core_m'], abs(p - position))
+            worst['core_rad'] = max(worst['core_rad'], abs(_wrapped(a - angle)))
+            p, a = _urdf_pose(model, joints, name)
+            worst['urdf_m'] = max(worst['urdf_m'], abs(p - position))
+            worst['urdf_rad'] = max(worst['urdf_rad'], abs(_wrapped(a - angle)))
+    assert worst['core_m'] < 1e-6 and worst['core_rad'] < 1e-6, worst
+    # /saw/joint_states come from a table of the same geometry (JointStateTable: 1e-5 rad).
+    assert worst['urdf_m'] < 1e-7 and worst['urdf_rad'] < 1e-5, worst
+    for msg in got['tf']:
+        t = msg.transforms[0]
         assert (t.header.frame_id, t.child_frame_id) == (frames.SURFACE, frames.BASE_LINK)
         pose = got['pose'][conv.stamp_ns(t.header.stamp)].pose
         assert (t.transform.translation.x, t.transform.translation.y) == \
@@ -110,5 +193,5 @@ def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(
         assert t.transform.rotation.w == pytest.approx(pose.orientation.w, abs=1e-12)
     assert len(got['urdf']) == 1, len(got['urdf'])
     robot = URDF.from_xml_string(got['urdf'][0].data)
-    assert [j.name for j in robot.joints] == got['names'][0]
+    assert sorted(j.name for j in robot.joints) == sorted(got['names'][0])
     assert robot.get_root() == frames.BASE_LINK

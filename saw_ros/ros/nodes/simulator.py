@@ -3,8 +3,11 @@ The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time
 
 Steps ``core.Simulator`` and publishes every step exactly once (stamps = simulated time, 1 ms
 apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts, /saw/contact_wrench and
-/saw/joint_states; and the robot for RViz / Foxglove on /saw/markers at ``markers_rate`` (60 Hz)
-of simulated time. docs/simulator.md lists the topics, frames, QoS and parameters.
+/saw/joint_states (every joint of the URDF: the helix, the base link, each wave link's position
+in the plane and angle); and the robot for RViz / Foxglove on /saw/markers, with TF of every link
+of the URDF (``link_tf``, so RobotModel draws the wave without robot_state_publisher), at
+``markers_rate`` (60 Hz) of simulated time. docs/simulator.md lists the topics, frames, QoS and
+parameters.
 
 Motor. The helix turns at conditions.frequency, or, with motor.voltage > 0, at the speed the
 core's DC motor reaches under the contacts' load (docs/motor.md). /saw/joint_states carries the
@@ -48,7 +51,6 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from saw_ros.core import stability
 from saw_ros.core.dynamics import DivergenceError, Simulator
-from saw_ros.core.kinematics import JointTable
 from saw_ros.core.params import ParameterError, Scenario
 from saw_ros.core.params import spec_meta
 from saw_ros.interface import frames, scene_markers, topics, urdf
@@ -113,8 +115,8 @@ class SimulatorNode(Node):
 
         scenario = self.params.scenario
         self.dt = scenario.integration.dt
-        self._joints = JointTable(scenario.robot)
-        self._joint_names = conv.joint_names(scenario.robot.wave_links)
+        self._joints = urdf.JointStateTable(scenario.robot)
+        self._joint_names = urdf.joint_names(scenario.robot)
         motor_topic = topics.topic(topics.MOTOR)
         self._pub_motor = self.create_publisher(message_class(motor_topic.type), topics.MOTOR,
                                                 publisher_profile(motor_topic.qos))
@@ -139,6 +141,8 @@ class SimulatorNode(Node):
         # TF surface -> base_link with the markers (the viewers' rate, not 1 kHz: /saw/pose has
         # every step), and the URDF of this robot, latched (saw_ros.interface.urdf).
         self._pub_tf = tf.publisher(self)
+        self._publish_tf = self._pub_tf.handle.publish_raw
+        self._link_tf = bool(self.get_parameter('link_tf').value)
         walls_topic = topics.topic(topics.WALLS)
         self._pub_walls = self.create_publisher(message_class(walls_topic.type), walls_topic.name,
                                                 publisher_profile(walls_topic.qos))
@@ -348,7 +352,7 @@ class SimulatorNode(Node):
         # The helix's speed and torque are the core's: constant, or the motor's under load.
         omega = float(sim.omega[0])
         driven = bool(sim.driven[0])
-        angles, rates = self._joints.angles_and_rates(float(sim.phase[0]), omega)
+        values, rates = self._joints.values_and_rates(float(sim.phase[0]), omega)
         # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
         self._publish_clock(conv.clock_cdr(ns))
         self._publish_pose(conv.pose_cdr(x, y, theta, ns))
@@ -356,7 +360,7 @@ class SimulatorNode(Node):
         self._publish_contacts(self._contacts_cdr(points, ns))
         self._publish_wrench(conv.wrench_cdr(fx, fy, mz, ns))
         self._publish_joints(self._joints_cdr(
-            float(sim.phase[0]), omega, angles, rates, ns,
+            float(sim.phase[0]), omega, values, rates, ns,
             float(sim.motor_torque[0]) if driven else None))
         if self.steps % self._motor_every == 0:
             volts = float(sim.motor.voltage[0]) if driven else 0.0   # the commanded one too
@@ -373,8 +377,13 @@ class SimulatorNode(Node):
             self._pub_markers.publish(markers.marker_array_cdr(scene_markers.scene(
                 scenario.robot, scenario.conditions.gap, (x, y, theta), float(sim.phase[0]),
                 points, walls=walls), ns))
-            self._pub_tf.publish(tf.message([tf.planar(frames.SURFACE, frames.BASE_LINK, ns,
-                                                       x, y, theta)]))
+            # The link frames from the core's exact geometry at this phase (the joint states'
+            # table is within 1e-5 rad of it): RViz's RobotModel without robot_state_publisher.
+            transforms = [(frames.SURFACE, frames.BASE_LINK, (x, y, 0.0),
+                           frames.yaw_quaternion(theta))]
+            if self._link_tf:
+                transforms += urdf.link_frames(scenario.robot, float(sim.phase[0]) % (2 * math.pi))
+            self._publish_tf(tf.message_cdr(transforms, ns))
 
     def close(self) -> None:
         """
@@ -417,6 +426,11 @@ OWN_PARAMETERS = (
         'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers, and surface -> '
         'base_link on /tf, per simulated second (at most one per step); 0 = none', 0.0, None,
         read_only=True)),
+    ('link_tf', True, spec_meta(
+        '', "with surface -> base_link, every link frame of the robot's URDF on /tf (at "
+        "markers_rate), so that RViz's RobotModel and Foxglove draw the robot without "
+        'robot_state_publisher; false where robot_state_publisher turns /saw/joint_states into '
+        'TF', read_only=True)),
     ('command_timeout', 0.5, spec_meta(
         's', 'simulated time without a command on /saw/motor_controller/commands after which '
         'the helix returns to its parameter (motor.voltage or conditions.frequency); 0 = the '
