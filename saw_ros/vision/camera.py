@@ -25,6 +25,14 @@ with the camera matrix they were calibrated with, ``dist_matrix`` (fx, fy, cx, c
 model's K). The mapping above is then between the surface and the IDEAL (undistorted) pixels;
 ``distort`` takes ideal pixels to where a real lens puts them in the image, ``undistort`` back.
 The renderer draws the ideal image and warps it; the tracker undistorts its marker centres only.
+
+The plane of motion (optional, ``plane``): a camera that is not square to the robot's plane sees
+it through a perspective. ``plane`` is then the homography (3x3, row-major) from ideal pixels to
+the plane's own coordinates in metres (x along its first axis, y up; from a calibration board
+lying in the plane or from points measured in it: ``saw_ros.vision.calibration``), and
+    w = H(u, v)                        ideal pixels -> plane, m
+takes the place of the scale above (``w`` then as above: mirror, slope, centre). ``scale`` is
+set to the plane's scale at the principal point (what the tracker's pixel tolerances use).
 """
 from __future__ import annotations
 
@@ -63,6 +71,8 @@ class CameraModel:
     dist_coeffs: Tuple[float, ...] = ()           # OpenCV (k1, k2, p1, p2[, k3[, k4, k5, k6]])
     # (fx, fy, cx, cy) of the calibration; None = K
     dist_matrix: Optional[Tuple[float, ...]] = None
+    # ideal pixels -> plane of motion (m), 3x3 row-major; None = square to the plane at ``scale``
+    plane: Optional[Tuple[float, ...]] = None
 
     def __post_init__(self):
         check_fields(self)          # the spec() ranges; ParameterError is a ValueError
@@ -77,6 +87,14 @@ class CameraModel:
                 raise ValueError(f'camera dist_matrix = {self.dist_matrix!r}: give (fx, fy, cx, '
                                  f'cy) with fx, fy > 0')
             object.__setattr__(self, 'dist_matrix', m)
+        if self.plane is not None:
+            h = np.asarray(self.plane, dtype=float).ravel()
+            if h.size != 9 or not np.all(np.isfinite(h)) or \
+                    abs(np.linalg.det(h.reshape(3, 3))) < 1e-300:
+                raise ValueError('camera plane: give the 9 finite numbers of an invertible '
+                                 'homography (ideal pixels -> plane, m)')
+            object.__setattr__(self, 'plane', tuple(float(v) for v in h))
+            object.__setattr__(self, 'scale', self._plane_scale())
 
     # -- intrinsics ----------------------------------------------------------------------------
     @property
@@ -176,20 +194,47 @@ class CameraModel:
     def replace(self, **changes) -> 'CameraModel':
         return replace(self, **changes)
 
+    # -- the plane of motion --------------------------------------------------------------------
+    @property
+    def homography(self) -> Optional[np.ndarray]:
+        """Return the plane's 3x3 matrix (ideal pixels -> plane, m), or None without one."""
+        return None if self.plane is None else np.array(self.plane).reshape(3, 3)
+
+    def _plane_scale(self) -> float:
+        """Return the plane's px per metre at the principal point (root of the area ratio)."""
+        h = self.homography
+        cx, cy = self.principal_point
+        x, y, w = h @ np.array([cx, cy, 1.0])
+        # The Jacobian of (u, v) -> (x / w, y / w) at the principal point, m per px
+        jac = (h[:2, :2] * w - np.outer([x, y], h[2, :2])) / (w * w)
+        return float(1.0 / math.sqrt(abs(np.linalg.det(jac))))
+
+    @staticmethod
+    def _apply(h: np.ndarray, p):
+        p = np.asarray(p)
+        den = h[2, 0] * p.real + h[2, 1] * p.imag + h[2, 2]
+        return (h[0, 0] * p.real + h[0, 1] * p.imag + h[0, 2]) / den + \
+            1j * (h[1, 0] * p.real + h[1, 1] * p.imag + h[1, 2]) / den
+
     # -- mapping -------------------------------------------------------------------------------
     def to_pixels(self, points):
-        """Surface-frame points (complex x + i y, m) -> pixels (complex u + i v)."""
+        """Surface-frame points (complex x + i y, m) -> ideal pixels (complex u + i v)."""
         w = (np.asarray(points) - complex(self.center_x, self.center_y)) * np.exp(1j * self.slope)
         if self.mirror:
             w = -np.conj(w)
+        if self.plane is not None:
+            return self._apply(np.linalg.inv(self.homography), w)
         cx, cy = self.principal_point
         return (cx + self.scale * w.real) + 1j * (cy - self.scale * w.imag)
 
     def to_surface(self, pixels):
-        """Pixels (complex u + i v) -> surface-frame points (complex x + i y, m)."""
+        """Ideal pixels (complex u + i v) -> surface-frame points (complex x + i y, m)."""
         p = np.asarray(pixels)
         cx, cy = self.principal_point
-        w = ((p.real - cx) - 1j * (p.imag - cy)) / self.scale
+        if self.plane is not None:
+            w = self._apply(self.homography, p)
+        else:
+            w = ((p.real - cx) - 1j * (p.imag - cy)) / self.scale
         if self.mirror:
             w = -np.conj(w)
         return w * np.exp(-1j * self.slope) + complex(self.center_x, self.center_y)

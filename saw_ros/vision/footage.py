@@ -15,7 +15,14 @@ of its own, with a known answer:
   RMS, frame to frame), and may zoom (``zoom``: relative scale change over the clip) and roll
   (``roll_deg``); the picture is a warp of the scene, so everything moves together but the robot;
 - an ``occluder``: a dark bar sweeping across in front of the robot;
-- sensor noise and JPEG compression.
+- sensor noise and JPEG compression;
+- a camera that is not square to the robot's plane (issue 32): turned by ``yaw_deg`` (about the
+  picture's vertical) and ``pitch_deg`` (about its horizontal) about the plane's point at the
+  picture's centre, ``distance`` m from it, seen through a lens with ``dist_coeffs`` (OpenCV's
+  model, barrel k1 < 0, pincushion k1 > 0). ``plane()`` is the true homography from ideal pixels
+  to the plane, ``lens()`` the true lens; ``board_still`` is a picture of the scene with a
+  calibration board lying in the plane, and ``BoardClip`` a clip of a board waved in front of a
+  camera (the lens calibration's footage, with its known K and distortion).
 
 The scene frame is the picture of a fixed camera (``camera()``: a ``CameraModel`` of the
 picture's size and scale, level); ``truth(t)`` gives the markers' surface-frame centres and
@@ -24,20 +31,36 @@ as ``saw-ros track`` does and holds the result against them. Pure numpy and Open
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace as replace_camera
 import math
 from typing import Iterator, List, Optional, Tuple
 
 import cv2
 import numpy as np
 
+from saw_ros.vision.calibration import Board
 from saw_ros.vision.camera import CameraModel
+from saw_ros.vision.scene import distortion_maps
 from saw_ros.vision.tracker import FrameResult, Tracker, TrackerConfig
 
 MARKER_BGR = (175, 70, 250)        # RGB (250, 70, 175): a pink that is not the renderer's
 SHIFT = 4                          # fixed-point bits for sub-pixel drawing
 ONE = 1 << SHIFT
 MARGIN = 320                       # px of scene drawn around the picture (camera drift)
+
+
+def _apply(h: np.ndarray, p):
+    """Return the points p (complex px) through the homography h."""
+    den = h[2, 0] * p.real + h[2, 1] * p.imag + h[2, 2]
+    return (h[0, 0] * p.real + h[0, 1] * p.imag + h[0, 2]) / den + \
+        1j * (h[1, 0] * p.real + h[1, 1] * p.imag + h[1, 2]) / den
+
+
+def _local_scale(h: np.ndarray, p: complex) -> float:
+    """Return the homography's length scale near p (square root of its area ratio)."""
+    e = 0.5
+    a, b, c = _apply(h, np.array([p, p + e, p + 1j * e]))
+    return math.sqrt(abs(((b - a).conjugate() * (c - a)).imag)) / e
 
 
 @dataclass(frozen=True)
@@ -67,12 +90,86 @@ class Shot:
     noise: float = 3.0             # grey levels RMS
     quality: int = 85              # JPEG quality; 0: none
     seed: int = 1
+    yaw_deg: float = 0.0           # camera turned about the picture's vertical, to the plane
+    pitch_deg: float = 0.0         # ... about its horizontal
+    distance: float = 1.0          # m, camera to the plane's point at the picture's centre
+    dist_coeffs: Tuple[float, ...] = ()       # the lens (OpenCV's k1, k2, p1, p2[, k3])
 
     def __post_init__(self):
-        if not (self.duration > 0 and self.fps > 0 and self.scale > 0 and self.spacing > 0):
-            raise ValueError('shot duration, fps, scale and spacing must be > 0')
+        if not (self.duration > 0 and self.fps > 0 and self.scale > 0 and self.spacing > 0
+                and self.distance > 0):
+            raise ValueError('shot duration, fps, scale, spacing and distance must be > 0')
         if not 0 <= self.quality <= 100:
             raise ValueError(f'shot quality = {self.quality!r}: 0 (none) or 1-100')
+        if not (abs(self.yaw_deg) < 60 and abs(self.pitch_deg) < 60):
+            raise ValueError('shot yaw_deg and pitch_deg must be within 60 deg')
+
+    # -- the camera that films it --------------------------------------------------------------
+    @property
+    def square(self) -> bool:
+        """Whether the camera looks square at the plane through a perfect lens."""
+        return self.yaw_deg == 0 and self.pitch_deg == 0 and not any(self.dist_coeffs)
+
+    def view(self) -> np.ndarray:
+        """
+        Return the homography from the level square camera's pixels to this camera's ideal ones.
+
+        A plane point (X, Y) (m, right and up from the point at the picture's centre) is at
+        R (X, -Y, 0) + (0, 0, distance) in this camera's frame (x right, y down, z forward); R
+        turns by the pitch about x, then the yaw about y; K has f = scale * distance.
+        """
+        cx, cy = (self.width - 1) / 2.0, (self.height - 1) / 2.0
+        a, b = math.radians(self.yaw_deg), math.radians(self.pitch_deg)
+        ry = np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+        rx = np.array([[1, 0, 0], [0, math.cos(b), -math.sin(b)], [0, math.sin(b), math.cos(b)]])
+        r = ry @ rx
+        f = self.scale * self.distance
+        k = np.array([[f, 0, cx], [0, f, cy], [0, 0, 1.0]])
+        m = k @ np.stack([r[:, 0], -r[:, 1], [0.0, 0.0, self.distance]], -1)
+        to_plane = np.array([[1 / self.scale, 0, -cx / self.scale],
+                             [0, -1 / self.scale, cy / self.scale], [0, 0, 1.0]])
+        h = m @ to_plane
+        return h / h[2, 2]
+
+    def plane(self) -> np.ndarray:
+        """Return the truth: the 3x3 map from this camera's ideal pixels to metres on the plane."""
+        to_plane = np.array([[1 / self.scale, 0, -(self.width - 1) / 2.0 / self.scale],
+                             [0, -1 / self.scale, (self.height - 1) / 2.0 / self.scale],
+                             [0, 0, 1.0]])
+        h = to_plane @ np.linalg.inv(self.view())
+        return h / h[2, 2]
+
+    def lens(self) -> CameraModel:
+        """Return the true lens as a camera model (K of f = scale * distance, the distortion)."""
+        return CameraModel(width=self.width, height=self.height, scale=self.scale,
+                           distance=self.distance, dist_coeffs=self.dist_coeffs)
+
+    def calibrated_camera(self, slope_known: bool = True) -> CameraModel:
+        """Return the camera a tracker gets from a perfect lens and plane calibration."""
+        lens = self.lens()
+        return replace_camera(self.camera(slope_known), plane=tuple(self.plane().ravel()),
+                              dist_coeffs=lens.dist_coeffs,
+                              dist_matrix=tuple(lens._dist_K()[[0, 1, 0, 1], [0, 1, 2, 2]]))
+
+    def ruler_scale(self) -> float:
+        """
+        Return the px per metre a ruler along the track at the picture's centre measures.
+
+        The scale a user gives without a calibration: right there, wrong away from there when
+        the camera is not square to the plane.
+        """
+        to_image = np.linalg.inv(self.plane())
+        slope = math.radians(self.slope_deg)
+        c = complex(_apply(self.plane(), np.array(complex((self.width - 1) / 2.0,
+                                                          (self.height - 1) / 2.0))))
+        half = 0.005 * complex(math.cos(slope), math.sin(slope))
+        a, b = _apply(to_image, np.array([c - half, c + half]))
+        return float(abs(b - a) / 0.01)
+
+    def picture_of(self, scene_px) -> np.ndarray:
+        """Return where the scene frame's pixels are in this camera's picture (lens included)."""
+        p = _apply(self.view(), np.asarray(scene_px))
+        return self.lens().distort(p)
 
     # -- geometry ------------------------------------------------------------------------------
     def camera(self, slope_known: bool = True) -> CameraModel:
@@ -209,25 +306,69 @@ class Shot:
 
     def frames(self) -> Iterator[Tuple[int, float, np.ndarray]]:
         """Yield (index, t, BGR frame): a frame source (saw_ros.vision.offline)."""
+        return self._frames(self._background(), robot=True)
+
+    def board_still(self, board: Board, at: complex = 0j, px_per_square: int = 48) -> \
+            np.ndarray:
+        """
+        Return one picture of the scene (no robot) with ``board`` lying in the robot's plane.
+
+        The board's point (0, 0) at the surface point ``at`` (m, track frame), its rows along
+        the plane's x (level), its columns down: the plane it gives is the true one moved.
+        """
         background = self._background()
+        img = board.image(px_per_square)
+        o, per_m = board.origin_px(px_per_square), px_per_square / board.square
+        cam = self.camera(False)
+        origin = complex(cam.to_pixels(at + 1j * self.track_y)) + MARGIN * (1 + 1j)
+        k = self.scale / per_m
+        to_bg = np.array([[k, 0, origin.real - k * o], [0, k, origin.imag - k * o]])
+        size = (background.shape[1], background.shape[0])
+        warped = cv2.warpAffine(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR), to_bg, size,
+                                flags=cv2.INTER_AREA)
+        mask = cv2.warpAffine(np.full(img.shape, 255, np.uint8), to_bg, size,
+                              flags=cv2.INTER_AREA)[..., None] / 255.0
+        background = (background * (1 - mask) + warped * mask).astype(np.uint8)
+        return next(self._frames(background, robot=False))[2]
+
+    def _frames(self, background: np.ndarray, robot: bool) -> \
+            Iterator[Tuple[int, float, np.ndarray]]:
         motion = self._camera_motion()
+        view = self.view()
+        lens = self.lens()
+        lens_maps = distortion_maps(lens) if lens.distorted else None
         rng = np.random.default_rng(self.seed + 3)
         noise = np.rint(rng.normal(0.0, self.noise, (self.height + 16, self.width + 16, 3))) \
             .astype(np.int16) if self.noise > 0 else None
         cam = self.camera()
         for k, t in enumerate(self.times):
             m = motion[k]
-            into_bg = m.copy()
-            into_bg[:, 2] -= m[:, :2] @ np.array([MARGIN, MARGIN])
-            frame = cv2.warpAffine(background, into_bg, (self.width, self.height),
-                                   flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+            if self.square:
+                into_bg = m.copy()
+                into_bg[:, 2] -= m[:, :2] @ np.array([MARGIN, MARGIN])
+                frame = cv2.warpAffine(background, into_bg, (self.width, self.height),
+                                       flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
 
-            def to_picture(p, m=m):
-                p = np.asarray(p)
-                return (m[0, 0] * p.real + m[0, 1] * p.imag + m[0, 2]) + \
-                    1j * (m[1, 0] * p.real + m[1, 1] * p.imag + m[1, 2])
-            zoom = math.hypot(m[0, 0], m[1, 0])
-            self._robot(frame, float(t), to_picture, zoom)
+                def to_picture(p, m=m):
+                    p = np.asarray(p)
+                    return (m[0, 0] * p.real + m[0, 1] * p.imag + m[0, 2]) + \
+                        1j * (m[1, 0] * p.real + m[1, 1] * p.imag + m[1, 2])
+                zoom = math.hypot(m[0, 0], m[1, 0])
+            else:
+                # The handheld motion acts on this camera's picture, after the view.
+                g = np.vstack([m, [0.0, 0.0, 1.0]]) @ view
+                shift = np.array([[1.0, 0, -MARGIN], [0, 1.0, -MARGIN], [0, 0, 1.0]])
+                frame = cv2.warpPerspective(background, g @ shift, (self.width, self.height),
+                                            flags=cv2.INTER_LINEAR,
+                                            borderMode=cv2.BORDER_REFLECT)
+
+                def to_picture(p, g=g):
+                    return _apply(g, np.asarray(p))
+                # (discs drawn with the local scale at the picture's centre: a 14 px marker's
+                # ellipse has the same centroid as its circle to 0.01 px)
+                zoom = _local_scale(g, complex((self.width - 1) / 2.0, (self.height - 1) / 2.0))
+            if robot:
+                self._robot(frame, float(t), to_picture, zoom)
             if self.occluder:
                 # A bar 3 cm wide sweeping right to left across the robot every 2 s.
                 u = (1.0 - ((t * 0.5) % 1.0)) * (self.width + 200) - 100
@@ -236,6 +377,9 @@ class Shot:
                                 x_track + 0.015 + 0.17j, x_track - 0.015 + 0.17j]) + \
                     1j * self.track_y
                 self._poly(frame, to_picture(cam.to_pixels(bar)), (40, 35, 30))
+            if lens_maps is not None:
+                frame = cv2.remap(frame, lens_maps[0], lens_maps[1], cv2.INTER_LINEAR,
+                                  borderMode=cv2.BORDER_REFLECT)
             if noise is not None:
                 dy, dx = rng.integers(0, 16, 2)
                 frame = np.clip(frame + noise[dy:dy + self.height, dx:dx + self.width], 0, 255) \
@@ -260,6 +404,8 @@ class Shot:
         """Whether marker ``name`` is fully in the picture of the fixed camera and not hidden."""
         front, back = self.truth(t)
         p = complex(self.camera(True).to_pixels(front if name == 'front' else back))
+        if not self.square:
+            p = complex(self.picture_of(p))
         r = 0.5 * self.marker_diameter * self.scale + 12.0     # room for drift of a few px
         return r <= p.real <= self.width - 1 - r and r <= p.imag <= self.height - 1 - r and \
             not self.occluded(t, name)
@@ -325,3 +471,86 @@ def track_shot(shot: Shot, slope_known: bool = False, config: TrackerConfig = Tr
         100.0 * abs(speed - shot.mean_speed()) / shot.mean_speed()
     return ShotResult(speed, error, visible, ok_visible, wrong, tracker.warnings, tracker.notes,
                       tracker, results)
+
+
+@dataclass(frozen=True)
+class BoardClip:
+    """
+    A calibration board waved in front of a camera: the lens calibration's footage.
+
+    ``views`` pictures of ``board`` held ``near``-``far`` m away, tilted by up to ``tilt_deg``
+    towards and away from the camera, left and right (``tilt_deg`` 0: every view parallel to the
+    picture), turned a little in the picture, somewhere in view; drawn through the pinhole camera
+    of focal length ``focal`` px and the lens ``dist_coeffs``. ``blur`` px of Gaussian blur
+    (sigma), ``noise`` grey levels; ``cut`` views pushed half out of the picture. A frame source
+    (``size``, ``frames()``); ``lens()`` is the truth.
+    """
+
+    board: Board
+    width: int = 640
+    height: int = 360
+    focal: float = 600.0
+    dist_coeffs: Tuple[float, ...] = ()
+    views: int = 16
+    near: float = 0.35
+    far: float = 0.6
+    tilt_deg: float = 35.0
+    blur: float = 0.0
+    noise: float = 2.0
+    cut: int = 0
+    fps: float = 10.0
+    seed: int = 3
+
+    @property
+    def size(self) -> Tuple[int, int]:
+        return self.width, self.height
+
+    def lens(self) -> CameraModel:
+        """Return the true camera: K (f = ``focal``, centre) and the distortion."""
+        return CameraModel(width=self.width, height=self.height, scale=self.focal, distance=1.0,
+                           dist_coeffs=self.dist_coeffs)
+
+    def _pose(self, rng, k: int) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the board's rotation and the camera-frame position of its centre."""
+        a = math.radians(self.tilt_deg)
+        # Tilts spread over the clip: about x and y in turn, both signs (a hand waving it).
+        ax = a * math.sin(2.4 * k + 0.3) * rng.uniform(0.6, 1.0)
+        ay = a * math.cos(1.7 * k) * rng.uniform(0.6, 1.0)
+        az = math.radians(rng.uniform(-15.0, 15.0))
+        r = cv2.Rodrigues(np.array([ax, ay, az]))[0]
+        z = rng.uniform(self.near, self.far)
+        half_w, half_h = 0.5 * self.width / self.focal * z, 0.5 * self.height / self.focal * z
+        b = self.board
+        extent = 0.5 * (b.cols + 1) * b.square
+        room = np.array([max(half_w - extent, 0.0), max(half_h - 0.7 * extent, 0.0)])
+        xy = rng.uniform(-1.0, 1.0, 2) * room * 0.8
+        if k < self.cut:
+            xy[0] = half_w * (1.0 if k % 2 else -1.0)        # half out of the picture
+        return r, np.array([xy[0], xy[1], z])
+
+    def frames(self) -> Iterator[Tuple[int, float, np.ndarray]]:
+        """Yield (index, t, BGR frame)."""
+        rng = np.random.default_rng(self.seed)
+        s = 48
+        img = self.board.image(s)
+        o, per_m = self.board.origin_px(s), s / self.board.square
+        centre = self.board.object_points()[:, :2].mean(0) if self.board.kind == 'chessboard' \
+            else 0.5 * np.array([self.board.cols, self.board.rows]) * self.board.square
+        from_img = np.array([[1 / per_m, 0, -o / per_m], [0, 1 / per_m, -o / per_m], [0, 0, 1]])
+        lens = self.lens()
+        maps = distortion_maps(lens) if lens.distorted else None
+        k_mat = lens.K
+        for k in range(self.views):
+            r, t = self._pose(rng, k)
+            t = t - r @ np.array([centre[0], centre[1], 0.0])
+            h = k_mat @ np.stack([r[:, 0], r[:, 1], t], -1) @ from_img
+            frame = cv2.warpPerspective(img, h, (self.width, self.height), flags=cv2.INTER_LINEAR,
+                                        borderMode=cv2.BORDER_CONSTANT, borderValue=110)
+            if maps is not None:
+                frame = cv2.remap(frame, maps[0], maps[1], cv2.INTER_LINEAR,
+                                  borderMode=cv2.BORDER_CONSTANT, borderValue=110)
+            if self.blur > 0:
+                frame = cv2.GaussianBlur(frame, (0, 0), self.blur)
+            if self.noise > 0:
+                frame = np.clip(frame + rng.normal(0.0, self.noise, frame.shape), 0, 255)
+            yield k, k / self.fps, cv2.cvtColor(frame.astype(np.uint8), cv2.COLOR_GRAY2BGR)

@@ -14,14 +14,21 @@ as a recording's camera stream (saw_ros.analysis.bag_frames.BagFrames: raw or JP
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
+from typing import Optional
 
+import numpy as np
+
+from saw_ros.vision import perspective
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import scale_from_spacing, Tracker, TrackerConfig
 from saw_ros.vision.video import FrameFolder, read_frames, video_info
 
 SCALE_FRAMES = 120      # ok frames the first pass measures the marker spacing on
 MIN_SCALE_FRAMES = 30   # fewer: no scale (one frame of a wrong pair gave a scale 4.4x too large)
+PLANE_FRAMES = 900      # ok frames the first pass looks for a perspective on (15 s at 60 fps)
+PLACEHOLDER = 1000.0    # px/m of the first pass: pixels are what it measures
 
 
 class VideoFile:
@@ -78,15 +85,68 @@ def measure_scale(source, camera_kw: dict, config: TrackerConfig, spacing: float
     without any. ValueError when fewer than MIN_SCALE_FRAMES frames had both markers: a scale
     from a handful of frames may be a wrong pair's.
     """
+    measured = _first_pass(source, camera_kw, config, spacing, fps, slope_known, SCALE_FRAMES)
+    if measured is None:
+        return None
+    return measured.median, measured.frames, measured.spread
+
+
+@dataclasses.dataclass
+class SpacingScale:
+    """The scale from the markers' spacing, and the perspective along the track it shows."""
+
+    scale: float                # px/m: the median over the frames (at the principal point with
+    frames: int                 # ... a perspective)
+    spread: float               # px, half the 16-84 % range of the spacing
+    median: float               # px/m: the median over the frames
+    along: Optional[perspective.AlongTrack]     # the fit (None: too few frames or no travel)
+    plane: Optional[np.ndarray]                 # its homography, when it is significant
+
+    def camera_kw(self, camera_kw: dict) -> dict:
+        """Return the camera arguments that measure with this scale (and its perspective)."""
+        if self.plane is None:
+            return dict(camera_kw, scale=self.scale)
+        return dict(camera_kw, plane=tuple(self.plane.ravel()))
+
+
+def _first_pass(source, camera_kw: dict, config: TrackerConfig, spacing: float, fps: float,
+                slope_known: bool, frames: int) -> Optional[SpacingScale]:
     blind = dataclasses.replace(config, marker_spacing=None, marker_diameter=None)
-    kw = dict(camera_kw, scale=1000.0)          # a placeholder: pixels are what is measured
-    results, tracker = track_video(source, kw, blind, fps, stop_after_ok=SCALE_FRAMES,
+    kw = dict(camera_kw, scale=PLACEHOLDER)
+    results, tracker = track_video(source, kw, blind, fps, stop_after_ok=frames,
                                    slope_known=slope_known)
     if tracker.switched_at is not None:         # frames of a static pair dropped: not these
         results = [r for r in results if r.t > tracker.switched_at]
     measured = scale_from_spacing(results, spacing)
-    if measured is not None and measured[1] < MIN_SCALE_FRAMES:
+    if measured is None:
+        return None
+    if measured[1] < MIN_SCALE_FRAMES:
         raise ValueError(f'the marker spacing was measured on {measured[1]} frames only (at '
                          f'least {MIN_SCALE_FRAMES} needed for a scale): give --px-per-m, or '
                          'a clip in which both markers are in view for longer')
-    return measured
+    camera = tracker.camera
+    center = complex(camera.center_x, camera.center_y)
+    along = perspective.fit(*perspective.along_track(results, center), spacing)
+    plane = None
+    slope = tracker.slope_used
+    if along is not None and along.significant and slope is not None:
+        direction = complex(math.cos(slope), math.sin(slope))
+        if camera.mirror:
+            direction = -direction.conjugate()
+        plane = along.homography(PLACEHOLDER, camera.principal_point, direction)
+        scale = along.g * PLACEHOLDER
+    else:
+        scale = measured[0]
+    return SpacingScale(scale, measured[1], measured[2], measured[0], along, plane)
+
+
+def measure_plane(source, camera_kw: dict, config: TrackerConfig, spacing: float,
+                  fps: float = 0.0, slope_known: bool = True) -> Optional[SpacingScale]:
+    """
+    Return the scale from the markers' spacing, with the perspective along the track.
+
+    A first pass over up to PLANE_FRAMES frames with both markers (as ``measure_scale``); when
+    the spacing changes with the markers' place along the track (``perspective``), the plane's
+    homography that makes them ``spacing`` apart wherever they are. None without any frame.
+    """
+    return _first_pass(source, camera_kw, config, spacing, fps, slope_known, PLANE_FRAMES)

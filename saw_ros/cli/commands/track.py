@@ -15,7 +15,14 @@ window, region of interest, marker size, ...) are TrackerConfig's, listed below.
 VIDEO may also be a recording (a bag directory or its .mcap): its camera frames, JPEG
 (/saw/camera/image_raw/compressed) or raw, timed by their stamps.
 
+A camera that is not square to the robot's plane: calibrate its lens and the plane first
+(saw-ros calibrate-camera), then --camera-calibration camera.yaml --plane plane.yaml (or
+--plane-points): positions in metres on the plane, perspective and lens taken out. Without a
+calibration the markers' spacing changing along the track is a warning (with --px-per-m), or the
+scale is measured where the robot is (--marker-spacing-m alone).
+
 Example: saw-ros track run.mp4 --px-per-m 1200 --slope-deg 20 --csv run.csv
+         saw-ros track run.mp4 --camera-calibration camera.yaml --plane plane.yaml
          saw-ros track robot.mp4 --marker-spacing-m 0.32 --roi 0,200,1280,560
          saw-ros track bags/2026-11-23_16-33-09_demo --px-per-m 1200
 """
@@ -33,8 +40,10 @@ import numpy as np
 from saw_ros.cli.checks import number, output_file, spec_number, video_input
 from saw_ros.cli.errors import UserError
 from saw_ros.core.params import spec_entries
+from saw_ros.vision import calibration, perspective
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.offline import measure_scale, SCALE_FRAMES, track_video  # noqa: F401
+from saw_ros.vision.offline import measure_plane, measure_scale, SCALE_FRAMES  # noqa: F401
+from saw_ros.vision.offline import track_video
 from saw_ros.vision.tracker import scale_from_spacing, TrackerConfig, TrackStatus
 from saw_ros.vision.video import VideoError
 
@@ -110,6 +119,15 @@ def add_arguments(p):
     g.add_argument('--dist-coeffs', type=_numbers(float, (4, 5, 8)), default=None,
                    metavar='K1,K2,P1,P2[,K3]', help='lens distortion coefficients (OpenCV '
                                                     'order): marker centres are undistorted')
+    g.add_argument('--camera-calibration', type=Path, default=None, metavar='CAMERA.yaml',
+                   help='the lens: a ROS camera calibration YAML (saw-ros calibrate-camera, or '
+                        "ROS camera_calibration's): marker centres are undistorted")
+    g.add_argument('--plane', type=Path, default=None, metavar='PLANE.yaml',
+                   help='the plane of motion (saw-ros calibrate-camera --plane-output): '
+                        "positions in metres on it, whatever the camera's angle to it")
+    g.add_argument('--plane-points', default=None, metavar='U,V,X,Y;...',
+                   help='the plane of motion from 4 or more picture points (px, as in the '
+                        'video) with their plane coordinates (m, x along the track, y up)')
     g.add_argument('--csv', type=Path, default=None, help='write one row per frame here')
     g.add_argument('--plot', type=Path, default=None, metavar='PATH.png',
                    help='write the tracked position and speed over time to this PNG')
@@ -182,32 +200,66 @@ def run(args):
         output_file(args.csv, '--csv', ('.csv',))
     if args.plot is not None:
         output_file(args.plot, '--plot', ('.png',))
-    if args.px_per_m is None and config.marker_spacing is None:
+    if args.plane is not None and args.plane_points is not None:
+        raise UserError('give the plane once: --plane (a file) or --plane-points')
+    planar = args.plane is not None or args.plane_points is not None
+    if planar and args.px_per_m is not None:
+        raise UserError('--px-per-m and a plane (--plane, --plane-points) both set the scale: '
+                        'the plane measures in metres, leave --px-per-m out')
+    if not planar and args.px_per_m is None and config.marker_spacing is None:
         raise UserError('give the scale: --px-per-m (pixels per metre, from a ruler in the '
-                        "picture) or --marker-spacing-m (the markers' distance on the robot)")
+                        "picture), --marker-spacing-m (the markers' distance on the robot) or "
+                        'the plane (--plane, --plane-points)')
     if (args.dist_coeffs is None) != (args.camera_matrix is None):
         raise UserError('--dist-coeffs and --camera-matrix go together (the lens calibration)')
+    if args.camera_calibration is not None and args.dist_coeffs is not None:
+        raise UserError('give the lens once: --camera-calibration or --camera-matrix with '
+                        '--dist-coeffs')
     slope_known = args.slope_deg is not None
     camera_kw = {'slope': math.radians(args.slope_deg or 0.0), 'center_x': args.center_x,
                  'center_y': args.center_y, 'mirror': args.mirror}
     if args.dist_coeffs is not None:
         camera_kw.update(dist_coeffs=args.dist_coeffs, dist_matrix=args.camera_matrix)
     source = _source(args.video, args.fps)
+    lens = None
     try:
-        if args.px_per_m is not None:
+        if args.camera_calibration is not None:
+            lens = calibration.read_lens(args.camera_calibration)
+            if (lens.width, lens.height) != tuple(source.size):
+                raise UserError(f'--camera-calibration {args.camera_calibration}: calibrated '
+                                f'for {lens.width}x{lens.height} pictures, the video is '
+                                f'{source.size[0]}x{source.size[1]} (the same camera and mode '
+                                'are needed)')
+            camera_kw.update(lens.camera_kw())
+        if planar:
+            camera_kw['plane'] = tuple(_plane(args, camera_kw, source.size).ravel())
+            scale = CameraModel(width=source.size[0], height=source.size[1], **camera_kw).scale
+            scale_text = (f'scale: metres on the plane ({args.plane or "--plane-points"}; '
+                          f"{scale:.2f} px/m at the picture's centre)")
+        elif args.px_per_m is not None:
             scale = args.px_per_m
             scale_text = f'scale: {scale:g} px/m (--px-per-m)'
         else:
-            measured = measure_scale(source, camera_kw, config, config.marker_spacing,
+            measured = measure_plane(source, camera_kw, config, config.marker_spacing,
                                      slope_known=slope_known)
             if measured is None:
                 raise UserError('the marker spacing could not be measured: no frame with both '
                                 'markers told apart (try --roi around the track, or give '
                                 '--px-per-m)')
-            scale, n, spread = measured
-            scale_text = (f'scale: {scale:.2f} px/m from the marker spacing '
-                          f'{config.marker_spacing:g} m (--marker-spacing-m; median of {n} '
-                          f'frames, spread +-{spread:.2f} px)')
+            scale, n, spread = measured.scale, measured.frames, measured.spread
+            camera_kw = measured.camera_kw(camera_kw)
+            if measured.plane is not None:
+                along = measured.along
+                scale_text = (f'scale: from the marker spacing {config.marker_spacing:g} m '
+                              f'(--marker-spacing-m) where the robot is, frame by frame: '
+                              f"{scale:.2f} px/m at the picture's centre, changing by "
+                              f"{100 * along.change:+.1f} % over the robot's travel ({n} "
+                              'frames; perspective: the camera is not square to the plane, '
+                              'calibrate the plane for the best measure)')
+            else:
+                scale_text = (f'scale: {scale:.2f} px/m from the marker spacing '
+                              f'{config.marker_spacing:g} m (--marker-spacing-m; median of {n} '
+                              f'frames, spread +-{spread:.2f} px)')
         results, tracker = track_video(Progress(source, args.quiet), dict(camera_kw, scale=scale),
                                        config, slope_known=slope_known)
     except (VideoError, ValueError) as exc:
@@ -234,13 +286,11 @@ def run(args):
               'direction; give --slope-deg)')
     for note in tracker.notes:
         print(note)
-    for warning in tracker.warnings:
+    warnings = list(tracker.warnings)
+    if args.px_per_m is not None:
+        warnings += scale_warnings(results, tracker, args.px_per_m, config.marker_spacing)
+    for warning in warnings:
         print(f'saw-ros track: warning: {warning}', file=sys.stderr)
-    if args.px_per_m is not None and config.marker_spacing is not None:
-        check = scale_from_spacing(results, 1.0)
-        if check is not None:
-            print(f'marker spacing measured with that scale: {check[0] / scale:.4f} m '
-                  f'(--marker-spacing-m {config.marker_spacing:g})')
     if len(ok) < 2:
         print('too few frames with both markers: no position or speed', file=sys.stderr)
         return 1
@@ -266,6 +316,54 @@ def run(args):
         plot(args.plot, args.video, results, steady, config)
         print(f'plot: {args.plot}')
     return 0
+
+
+def _plane(args, camera_kw: dict, size) -> np.ndarray:
+    """Return the plane's homography of --plane or --plane-points (ideal pixels -> m)."""
+    try:
+        if args.plane is not None:
+            return calibration.read_plane(args.plane)
+        image, plane = calibration.parse_plane_points(args.plane_points)
+        lens = CameraModel(width=size[0], height=size[1],
+                           **{k: v for k, v in camera_kw.items()
+                              if k in ('dist_coeffs', 'dist_matrix')})
+        ideal = lens.undistort(image[:, 0] + 1j * image[:, 1])
+        h, rms = calibration.plane_from_points(np.stack([ideal.real, ideal.imag], -1), plane)
+    except calibration.CalibrationError as exc:
+        raise UserError(str(exc)) from None
+    if len(image) > 4:
+        print(f'plane: {len(image)} points, RMS {1000 * rms:.2f} mm off the homography')
+    return h
+
+
+def scale_warnings(results, tracker, px_per_m: float, spacing) -> list:
+    """
+    Return what a single given scale gets wrong, one line each (empty: nothing seen).
+
+    The markers' spacing changing along the track (a perspective); a given marker spacing that
+    the scale measures otherwise, by more than the spacing's own spread over the frames.
+    """
+    out = []
+    camera = tracker.camera
+    along = perspective.fit(*perspective.along_track(
+        results, complex(camera.center_x, camera.center_y)))
+    if along is not None and along.significant:
+        out.append(perspective.warning(along, f'--px-per-m {px_per_m:g}'))
+    if spacing is not None:
+        check = scale_from_spacing(results, spacing)
+        if check is not None:
+            from_spacing, n, spread = check
+            print(f'marker spacing measured with that scale: '
+                  f'{spacing * from_spacing / px_per_m:.4f} m (--marker-spacing-m {spacing:g}; '
+                  f'{n} frames)')
+            # the spacing's own uncertainty: its spread over the frames, or 0.2 % at least
+            allowed = max(spread / spacing, 0.002 * from_spacing)
+            if abs(from_spacing - px_per_m) > allowed:
+                out.append(f'--px-per-m {px_per_m:g} disagrees with the marker spacing: '
+                           f'{spacing:g} m is {from_spacing:.1f} px/m (+-{allowed:.1f}, median '
+                           f'of {n} frames), {100 * (px_per_m / from_spacing - 1):+.1f} %: check '
+                           "the ruler, the spacing, or the camera's angle to the plane")
+    return out
 
 
 class Progress:
