@@ -66,7 +66,8 @@ def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
                     camera: Optional[Dict[str, object]] = None,
                     report_path: Optional[Path] = None,
                     reference_file: Optional[Path] = None,
-                    controller: Optional[Dict[str, object]] = None
+                    controller: Optional[Dict[str, object]] = None,
+                    foxglove: Optional[Dict[str, object]] = None
                     ) -> Dict[str, Dict[str, object]]:
     """
     Return the main job's nodes in start order, each with its ROS parameters.
@@ -80,6 +81,9 @@ def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
     (at CONTROLLER_START_VOLTAGE until the first command, unless the scenario sets
     motor.voltage) and hands the helix back to it only after CONTROLLER_TIMEOUT without
     commands, which covers the tracker's first frames.
+
+    ``foxglove``: also the Foxglove bridge (saw_ros.ros.nodes.foxglove_bridge), with these
+    parameters (``port``...); it subscribes to a topic only while a client watches it.
     """
     scenario = dict(scenario or {})
     if controller is not None:
@@ -106,6 +110,7 @@ def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
         'vision': {'slope': slope, 'image_transport': 'compressed'},
         'camera': dict(slope=slope, **dict(camera or {})),
         **({'speed_controller': dict(controller)} if controller is not None else {}),
+        **({'foxglove_bridge': dict(foxglove)} if foxglove is not None else {}),
     }
 
 
@@ -116,7 +121,8 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
                  progress=None, record_topics: Optional[List[str]] = None,
                  env: Optional[Dict[str, str]] = None,
                  hosts: Optional[Dict[str, List[str]]] = None,
-                 controller: Optional[Dict[str, object]] = None) -> PipelineRun:
+                 controller: Optional[Dict[str, object]] = None,
+                 foxglove: Optional[Dict[str, object]] = None) -> PipelineRun:
     """
     Run the graph once; always stops every process it started (also on Ctrl-C).
 
@@ -136,7 +142,7 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     # No video file from the camera: the recording holds the frames (compressed), and encoding
     # an mp4 beside the JPEGs cost the live graph real time (saw-ros bag video makes it after).
     node_params = node_parameters(duration, real_time_factor, scenario, record, camera,
-                                  report_path, reference_file, controller)
+                                  report_path, reference_file, controller, foxglove)
     nodes: List[ManagedProcess] = []
     codes: Dict[str, int] = {}
     start = time.monotonic()
