@@ -27,7 +27,7 @@ import numpy as np
 
 from saw_ros.core.dynamic_walls import critical_speed, DynamicWall, moving_load_deflection
 from saw_ros.core.dynamic_walls import ring_down
-from saw_ros.core.flexure import balance_links, Flexures, transmissibility
+from saw_ros.core.flexure import balance_links, elastic_law, Flexures, transmissibility
 from saw_ros.core.params import FlexureParams
 
 KEYS = ('moving_load_deflection_error_pct', 'critical_speed_error_pct',
@@ -99,10 +99,11 @@ def flexure_error(frequency=12.0, dt=1e-3) -> float:
     steps = int(round(1.0 / dt))
     t = dt * np.arange(1, steps + 1)
     out = np.empty(steps)
-    e, fb, ft = np.empty(1), np.empty(1), np.empty(1)
+    e, fb, ft, before = np.empty(1), np.empty(1), np.empty(1), np.zeros(1)
+    law = elastic_law(contact, 1.0)
     for i in range(steps):
-        balance_links(np.array([d0 + a * math.sin(w * t[i])]), np.array([-1.0]),
-                      flexures.prepare(), flexures.compliance, contact, 1.0, e, fb, ft)
+        balance_links(np.array([d0 + a * math.sin(w * t[i])]), np.array([-1.0]), before,
+                      before.copy(), flexures.prepare(), flexures.compliance, law, e, fb, ft)
         flexures.advance(fb - ft)
         out[i] = flexures.deflection[0]
     late = t > 0.5

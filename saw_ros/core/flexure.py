@@ -37,7 +37,7 @@ from typing import Tuple
 import numpy as np
 
 from saw_ros.core.dynamic_walls import compiled, mode_propagator, oscillator_step
-from saw_ros.core.params import FlexureParams
+from saw_ros.core.params import FlexureParams, SurfaceParams
 
 # The link solve (balance_links): Newton safeguarded by bisection on each link's deflection,
 # to this tolerance (m), a thousandth of core.walls' TOLERANCE; a few iterations a link.
@@ -117,39 +117,64 @@ def _advance(end: np.ndarray, k: float, c: float, mass: float, dt: float, phi: n
         reaction[i] = end[i] - mass * (rate[i] - before) / dt
 
 
+def contact_law(surface: SurfaceParams, dt: float) -> np.ndarray:
+    """
+    Return the contact law's normal constants for the link solve: (4,) array.
+
+    k_mean = kn (1 + e) / 2, k_half = kn (1 - e) / 2, k_rate = k_half / (v0 dt) and the
+    exponent: core.contact's folding (ContactLaw.from_values) of the paper's law with its
+    hysteresis factor, F = (k_mean + clip((d - d_before) k_rate, -k_half, k_half)) d^p.
+    """
+    half = surface.normal_stiffness * (1.0 - surface.restitution) / 2.0
+    return np.array([surface.normal_stiffness * (1.0 + surface.restitution) / 2.0, half,
+                     half / (surface.hysteresis_speed * dt), surface.hertz_exponent])
+
+
+def elastic_law(stiffness: float, exponent: float) -> np.ndarray:
+    """Return the constants of the law F = kn d^p without hysteresis (``contact_law``)."""
+    return np.array([stiffness, 0.0, 0.0, exponent])
+
+
 @compiled
-def _hertz(depth: float, stiffness: float, exponent: float) -> Tuple[float, float]:
-    """Return the elastic normal law's force kn d^p and its slope at depth d (0 outside)."""
+def _law(depth: float, before: float, law: np.ndarray) -> Tuple[float, float]:
+    """Return the normal law's force and its slope at ``depth`` after ``before`` (0 outside)."""
     if depth <= 0.0:
         return 0.0, 0.0
-    root = depth ** (exponent - 1.0)
-    return stiffness * root * depth, exponent * stiffness * root
+    change = (depth - before) * law[2]
+    factor = law[0] + max(min(change, law[1]), -law[1])
+    root = depth ** (law[3] - 1.0)
+    slope = law[3] * factor * root
+    if abs(change) < law[1]:
+        slope += law[2] * root * depth
+    return factor * root * depth, slope
 
 
 @compiled
-def balance_links(bottom: np.ndarray, top: np.ndarray, free: np.ndarray, compliance: float,
-                  normal_stiffness: float, exponent: float, deflection: np.ndarray,
-                  force_bottom: np.ndarray, force_top: np.ndarray) -> int:
+def balance_links(bottom: np.ndarray, top: np.ndarray, before_bottom: np.ndarray,
+                  before_top: np.ndarray, free: np.ndarray, compliance: float, law: np.ndarray,
+                  deflection: np.ndarray, force_bottom: np.ndarray,
+                  force_top: np.ndarray) -> int:
     """
-    Solve each link's deflection against its tips' elastic contacts; return the iterations.
+    Solve each link's deflection against its tips' contacts; return the iterations.
 
     ``bottom``, ``top``: the tips' penetrations into their rigid walls at the link's target (m,
     > 0 inside); the link at deflection e presses its bottom tip bottom - e deep and its top tip
-    top + e; e = free + C (F_bottom - F_top) with the elastic law F = kn d^p. The right-hand side
-    falls as e rises, so the root is single and bracketed by free and its first image: Newton
-    inside the bracket, bisection when a step would leave it. The standalone form of the
-    coupled solve (the step's contact law adds its hysteresis factor).
+    top + e; e = free + C (F_bottom - F_top), F the contact law ``law`` (``contact_law``) after
+    the last step's depths ``before_bottom``, ``before_top`` (updated to this step's). The law
+    rises with the depth, so the right-hand side falls as e rises: the root is single and
+    bracketed by free and its first image. Newton inside the bracket, bisection when a step
+    would leave it (the law's kinks: contact, the hysteresis band's ends).
     """
     total = 0
     for i in range(free.size):
         e = free[i]
-        fb, sb = _hertz(bottom[i] - e, normal_stiffness, exponent)
-        ft, st = _hertz(top[i] + e, normal_stiffness, exponent)
+        fb, sb = _law(bottom[i] - e, before_bottom[i], law)
+        ft, st = _law(top[i] + e, before_top[i], law)
         image = free[i] + compliance * (fb - ft)
         low, high = min(e, image), max(e, image)
         for iteration in range(MAX_ITERATIONS):
-            fb, sb = _hertz(bottom[i] - e, normal_stiffness, exponent)
-            ft, st = _hertz(top[i] + e, normal_stiffness, exponent)
+            fb, sb = _law(bottom[i] - e, before_bottom[i], law)
+            ft, st = _law(top[i] + e, before_top[i], law)
             residual = e - free[i] - compliance * (fb - ft)
             if residual > 0.0:
                 high = min(high, e)
@@ -166,8 +191,10 @@ def balance_links(bottom: np.ndarray, top: np.ndarray, free: np.ndarray, complia
             if high - low < TOLERANCE:
                 break
         deflection[i] = e
-        force_bottom[i], _ = _hertz(bottom[i] - e, normal_stiffness, exponent)
-        force_top[i], _ = _hertz(top[i] + e, normal_stiffness, exponent)
+        force_bottom[i], _ = _law(bottom[i] - e, before_bottom[i], law)
+        force_top[i], _ = _law(top[i] + e, before_top[i], law)
+        before_bottom[i] = max(bottom[i] - e, 0.0)
+        before_top[i] = max(top[i] + e, 0.0)
     return total
 
 
@@ -188,14 +215,15 @@ def transmissibility(frequency: float, stiffness: float, damping: float, mass: f
 
 @compiled
 def replay_links(bottom: np.ndarray, top: np.ndarray, stiffness: float, damping: float,
-                 mass: float, dt: float, normal_stiffness: float, exponent: float,
-                 reaction: np.ndarray, deflection: np.ndarray) -> None:
+                 mass: float, dt: float, law: np.ndarray, reaction: np.ndarray,
+                 deflection: np.ndarray) -> None:
     """
     Drive n flexure links through T steps of prescribed tip penetrations (T, n); fill (T, n).
 
     The open-loop use of the flexures: the targets' penetrations into rigid walls are those of
     a run of the rigid robot, the body's motion held to that run; each step balances every link
-    against its elastic contacts (``balance_links``) and advances it (``Flexures.advance``).
+    against its contacts (``balance_links``, ``law`` from ``contact_law``) and advances it
+    (``Flexures.advance``).
     ``reaction`` gets what the backbone feels (N, + y), ``deflection`` e (m).
     """
     phi = oscillator_step(stiffness, mass, damping, dt)
@@ -204,10 +232,11 @@ def replay_links(bottom: np.ndarray, top: np.ndarray, stiffness: float, damping:
     n = bottom.shape[1]
     e, rate, load = np.zeros(n), np.zeros(n), np.zeros(n)
     free, solved = np.empty(n), np.empty(n)
+    before_bottom, before_top = np.zeros(n), np.zeros(n)
     fb, ft, out = np.empty(n), np.empty(n), np.empty(n)
     for step in range(bottom.shape[0]):
         _free(e, rate, load, k, c, dt, phi, free)
-        balance_links(bottom[step], top[step], free, compliance, normal_stiffness, exponent,
+        balance_links(bottom[step], top[step], before_bottom, before_top, free, compliance, law,
                       solved, fb, ft)
         _advance(fb - ft, k, c, mass, dt, phi, load, e, rate, out)
         reaction[step] = out

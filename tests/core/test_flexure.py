@@ -4,18 +4,22 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.core.flexure import balance_links, Flexures, replay_links, transmissibility
-from saw_ros.core.params import FlexureParams
+from saw_ros.core.contact import ContactLaw
+from saw_ros.core.flexure import balance_links, contact_law, elastic_law, Flexures, replay_links
+from saw_ros.core.flexure import transmissibility
+from saw_ros.core.params import FlexureParams, SurfaceParams
 
 TPU = FlexureParams(stiffness=2000.0, damping=0.5, link_mass=0.004)     # docs/model.md, TPU
 KN, EXPONENT = 15500.0, 1.5                                              # the paper's contact
 
 
-def drive(flexures, bottom, top, kn=KN, exponent=EXPONENT):
+def drive(flexures, bottom, top, law=None, before=None):
     """One step: the links balanced against their contacts at the step's end, then advanced."""
     n = len(bottom)
     e, fb, ft = np.empty(n), np.empty(n), np.empty(n)
-    balance_links(bottom, top, flexures.prepare(), flexures.compliance, kn, exponent, e, fb, ft)
+    before = (np.zeros(n), np.zeros(n)) if before is None else before
+    balance_links(bottom, top, *before, flexures.prepare(), flexures.compliance,
+                  elastic_law(KN, EXPONENT) if law is None else law, e, fb, ft)
     flexures.advance(fb - ft)
     return e, fb, ft
 
@@ -53,8 +57,8 @@ def test_both_tips_touching_balance_one_link():
     flexures = Flexures(TPU, 1, 1e-3)
     e, fb, ft = np.empty(1), np.empty(1), np.empty(1)
     free = np.array([2e-4])
-    balance_links(np.array([0.002]), np.array([0.001]), free, flexures.compliance, KN, EXPONENT,
-                  e, fb, ft)
+    balance_links(np.array([0.002]), np.array([0.001]), np.zeros(1), np.zeros(1), free,
+                  flexures.compliance, elastic_law(KN, EXPONENT), e, fb, ft)
     assert fb[0] > 0 and ft[0] > 0
     assert e[0] == pytest.approx(free[0] + flexures.compliance * (fb[0] - ft[0]), abs=1e-12)
 
@@ -77,7 +81,7 @@ def test_a_harmonically_pressed_link_follows_the_closed_form(frequency):
         e_out, r_out = np.empty(steps), np.empty(steps)
         for i in range(steps):
             drive(flexures, np.array([d0 + a * math.sin(w * t[i])]), np.array([-1.0]),
-                  contact, 1.0)
+                  elastic_law(contact, 1.0))
             e_out[i], r_out[i] = flexures.deflection[0], flexures.reaction[0]
         late = t > 0.5              # the transient has decayed (c / 2m = 62 /s)
         basis = np.exp(-1j * w * t[late])
@@ -132,14 +136,25 @@ def test_replaying_penetrations_matches_the_stepped_flexures_and_rigid_links():
     bottom = np.ascontiguousarray(0.002 * np.sin(phase))
     top = np.ascontiguousarray(0.002 * np.sin(phase + math.pi))
     reaction, deflection = np.empty_like(bottom), np.empty_like(bottom)
-    replay_links(bottom, top, TPU.stiffness, TPU.damping, TPU.link_mass, 1e-3, KN, EXPONENT,
-                 reaction, deflection)
+    law = contact_law(SurfaceParams(), 1e-3)             # the paper's, with its hysteresis
+    replay_links(bottom, top, TPU.stiffness, TPU.damping, TPU.link_mass, 1e-3, law, reaction,
+                 deflection)
     flexures = Flexures(TPU, 4, 1e-3)
+    before = (np.zeros(4), np.zeros(4))
     for i in range(len(t)):
-        drive(flexures, bottom[i], top[i])
+        drive(flexures, bottom[i], top[i], law, before)
         np.testing.assert_allclose(flexures.reaction, reaction[i], rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(flexures.deflection, deflection[i], rtol=1e-9, atol=1e-15)
-    replay_links(bottom, top, 1e9, 0.0, TPU.link_mass, 1e-3, KN, EXPONENT, reaction,
-                 deflection)
+    replay_links(bottom, top, 1e9, 0.0, TPU.link_mass, 1e-3, elastic_law(KN, EXPONENT),
+                 reaction, deflection)
     loads = KN * np.maximum(bottom, 0) ** 1.5 - KN * np.maximum(top, 0) ** 1.5
     np.testing.assert_allclose(reaction, loads, atol=2e-3 * np.abs(loads).max())
+
+
+def test_the_link_solve_uses_the_contact_laws_own_constants():
+    surface = SurfaceParams(restitution=0.7, hysteresis_speed=0.02)
+    core = ContactLaw.from_values(surface.normal_stiffness, surface.tangential_stiffness,
+                                  surface.friction_coefficient, surface.hertz_exponent,
+                                  surface.restitution, surface.hysteresis_speed, 1e-3)
+    np.testing.assert_allclose(contact_law(surface, 1e-3),
+                               [core.kn_mean, core.kn_half, core.kn_rate, core.exponent])
