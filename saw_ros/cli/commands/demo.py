@@ -24,6 +24,7 @@ from saw_ros.graph.pipeline import PipelineError, run_pipeline
 from saw_ros.interface.config import config_path
 
 HELP = 'run the full pipeline (simulator, camera, vision, comparison, recorder) and report'
+FOXGLOVE_PORT = 8765        # the bridge's default (msg_config/foxglove_bridge.yaml), Foxglove's
 
 
 def add_arguments(p):
@@ -40,6 +41,9 @@ def add_arguments(p):
                    '(docs/drive.md)')
     p.add_argument('--target-cm-s', type=float, default=5.0,
                    help="the controller's target speed, cm/s (5)")
+    p.add_argument('--foxglove', action='store_true',
+                   help='also run foxglove_bridge: watch the run live in Foxglove at '
+                   f'ws://127.0.0.1:{FOXGLOVE_PORT} (docs/viewers.md)')
     add_scenario_arguments(p)
 
 
@@ -62,14 +66,19 @@ def run(args):
                if v != defaults[k] and k != 'integration.duration'}
     out = args.out or Path('out') / time.strftime('demo_%Y-%m-%d_%H-%M-%S')
     print(f'saw-ros demo: simulator, camera, vision, comparison, recorder'
-          f'{", speed_controller" if controller else ""}; {args.duration:g} s '
+          f'{", speed_controller" if controller else ""}'
+          f'{", foxglove_bridge" if args.foxglove else ""}; {args.duration:g} s '
           f'of simulated time at real-time factor {args.real_time_factor:g}; output {out}',
           flush=True)
+    foxglove = {'port': FOXGLOVE_PORT} if args.foxglove else None
+    if foxglove:
+        print(f'live in Foxglove: ws://127.0.0.1:{FOXGLOVE_PORT} (Foxglove app: Open connection > '
+              'Foxglove WebSocket; layout: docs/foxglove_layout.json)', flush=True)
     spinner = _Spinner(args.duration / max(args.real_time_factor, 0.1))
     try:
         result = run_pipeline(out, args.duration, args.real_time_factor, changed,
                               reference_file=config_path('reference_paper.csv'),
-                              progress=spinner, controller=controller)
+                              progress=spinner, controller=controller, foxglove=foxglove)
     except PipelineError as exc:
         spinner.close()
         print(f'saw-ros demo: {exc}', file=sys.stderr)
