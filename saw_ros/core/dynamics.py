@@ -37,7 +37,8 @@ from saw_ros.core.kinematics import turned_table_value
 from saw_ros.core.motor import MOTOR_FIELDS, MotorLaw, TORQUE_CONSTANT, turn_helix
 from saw_ros.core.params import ParameterError, PLACEMENT_SHARE, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
-from saw_ros.core.walls import Walls
+from saw_ros.core.walls import ACTIVE, bend_walls, LARGEST, WALL_FIELDS, WALL_ROWS, Walls
+from saw_ros.core.walls import WORK_ROWS
 
 GRAVITY = 9.81  # m/s^2
 TWO_PI = 2.0 * math.pi
@@ -156,22 +157,31 @@ def move_body(dt: float, side: np.ndarray, rates: np.ndarray, scale: float,
 def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scale: float,
                      side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                      harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
-                     motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
-                     tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
+                     motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
+                     wall_state: np.ndarray, body: np.ndarray, tips: np.ndarray,
+                     trace: np.ndarray, trace_tips: np.ndarray) -> None:
     """
-    Advance scenario ``s`` by ``steps`` steps: tips, contact law, body and helix (kernel).
+    Advance scenario ``s`` by ``steps`` steps: tips, walls, contact law, body, helix (kernel).
 
     Records the state into ``trace`` (and the tips' forces into ``trace_tips`` when it has
     rows) after every step whose number since the run's start (``first`` + k) is a multiple of
     ``every``; stops at a step that leaves the model, with body[s, STATUS] saying why and
     body[s, DONE] the steps made.
     """
-    b, c, t = body[s], constants[s], tips[s]
+    b, c, t, wc = body[s], constants[s], tips[s], walls[s]
+    bending = wc[ACTIVE] > 0.0
+    n = tips.shape[2] // 2
+    work = np.empty((WORK_ROWS + 2 * n, n)) if bending else np.empty((0, 0))
     b[STATUS] = 0.0
     for k in range(1, steps + 1):
         place_tips(table, scale, side, b, b[PHASE], c[GAP], t)
+        if bending:
+            bend_walls(law[s], wc, wall_state[s], t, work)
         press_tips(law[s], t)
         status = move_body(dt, side, rates, scale, harmonics, drive[s], motor[s], c, b, t)
+        # A wall that gives way by more than the gap is no longer a wall of the channel.
+        if status == 0 and bending and wc[LARGEST] > c[GAP]:
+            status = DIVERGED
         if status != 0:
             b[STATUS] = status
             b[DONE] = k - 1 if status == RUNAWAY else k
@@ -193,46 +203,28 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
 @numba.njit(cache=True)
 def advance(steps: int, first: int, every: int, dt: float, scale: float, side: np.ndarray,
             table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray, drive: np.ndarray,
-            law: np.ndarray, motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
-            tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
+            law: np.ndarray, motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
+            wall_state: np.ndarray, body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
+            trace_tips: np.ndarray) -> None:
     """Advance every scenario by ``steps`` (``advance_scenario``), one after the other."""
     for s in range(body.shape[0]):
         advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
-                         drive, law, motor, constants, body, tips, trace, trace_tips)
+                         drive, law, motor, constants, walls, wall_state, body, tips, trace,
+                         trace_tips)
 
 
 @numba.njit(cache=True, parallel=True)
 def advance_in_parallel(steps: int, first: int, every: int, dt: float, scale: float,
                         side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                         harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
-                        motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
-                        tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
+                        motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
+                        wall_state: np.ndarray, body: np.ndarray, tips: np.ndarray,
+                        trace: np.ndarray, trace_tips: np.ndarray) -> None:
     """``advance`` with the scenarios spread over the cores (numba's prange)."""
     for s in numba.prange(body.shape[0]):
         advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
-                         drive, law, motor, constants, body, tips, trace, trace_tips)
-
-
-@numba.njit(cache=True)
-def place_all_tips(table: np.ndarray, scale: float, side: np.ndarray, constants: np.ndarray,
-                   body: np.ndarray, tips: np.ndarray) -> None:
-    """Place every scenario's tips (``place_tips``): a step's first half with bending walls."""
-    for s in range(body.shape[0]):
-        place_tips(table, scale, side, body[s], body[s, PHASE], constants[s, GAP], tips[s])
-
-
-@numba.njit(cache=True)
-def press_and_move_all(dt: float, scale: float, side: np.ndarray, rates: np.ndarray,
-                       harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
-                       motor: np.ndarray, constants: np.ndarray, body: np.ndarray,
-                       tips: np.ndarray) -> None:
-    """Press every scenario's tips, move its body and helix: a step's second half with walls."""
-    for s in range(body.shape[0]):
-        press_tips(law[s], tips[s])
-        status = move_body(dt, side, rates, scale, harmonics, drive[s], motor[s], constants[s],
-                           body[s], tips[s])
-        body[s, STATUS] = status
-        body[s, DONE] = 0 if status == RUNAWAY else 1
+                         drive, law, motor, constants, walls, wall_state, body, tips, trace,
+                         trace_tips)
 
 
 class DivergenceError(RuntimeError):
@@ -373,6 +365,12 @@ class Simulator:
         # New parameters start the walls from the last forces' shape again at the next step.
         self.walls = (Walls(scenarios, self.table.side)
                       if any(s.surface.foundation_stiffness > 0.0 for s in scenarios) else None)
+        if self.walls is not None:
+            self.walls.tip_x = self._x
+            self._walls, self._wall_state = self.walls.constants, self.walls.state
+        else:
+            self._walls = np.zeros((self.count, WALL_FIELDS))
+            self._wall_state = np.zeros((self.count, WALL_ROWS, 2, self.table.count // 2))
         gap = np.array([[s.conditions.gap] for s in scenarios])
         self._gap = gap[:, 0]
         side = self.table.side
@@ -554,34 +552,20 @@ class Simulator:
     def _kernel_arguments(self) -> Tuple[Any, ...]:
         return (self.dt, self.table.scale, self._side, self.table.stacked, self._rates,
                 self._harmonics, self._drive, self._law_rows, self._motor_rows, self.constants,
-                self.body, self.tips)
+                self._walls, self._wall_state, self.body, self.tips)
 
     def step(self) -> None:
-        """One semi-implicit Euler step of every scenario."""
-        if self.walls is None:
-            self._advance(1, 0, 1, self._step_trace, self._no_trace)
-            return
-        dt, scale, side, table, rates, harmonics, drive, law, motor, constants, body, tips = \
-            self._kernel_arguments()
-        place_all_tips(table, scale, side, constants, body, tips)
-        # Bending walls (core.walls): the depth against the deflected surfaces.
-        self.depth[:] = self.walls.solve(self.penetration, self._x, self.contacts, self.law)
-        press_and_move_all(dt, scale, side, rates, harmonics, drive, law, motor, constants,
-                           body, tips)
-        self._finish(1)
-        if (self.walls.largest > self._gap).any():
-            self._check_divergence(int(np.argmax(self.walls.largest - self._gap)))
+        """One semi-implicit Euler step of every scenario (one kernel call)."""
+        self._advance(1, 0, 1, self._step_trace, self._no_trace)
 
     def _advance(self, steps: int, first: int, every: int, trace: np.ndarray,
                  trace_tips: np.ndarray) -> None:
-        """Advance every scenario ``steps`` steps in one kernel call (rigid walls)."""
-        dt, scale, side, table, rates, harmonics, drive, law, motor, constants, body, tips = \
-            self._kernel_arguments()
+        """Advance every scenario ``steps`` steps in one kernel call."""
         # Spread over the cores when there is enough to share: a parallel call costs more to
         # start than one scenario's step.
-        kernel = advance_in_parallel if self.count * steps >= PARALLEL_WORK else advance
-        kernel(steps, first, every, dt, scale, side, table, rates, harmonics, drive, law, motor,
-               constants, body, tips, trace, trace_tips)
+        kernel: Callable[..., None] = (advance_in_parallel if self.count * steps >= PARALLEL_WORK
+                                       else advance)
+        kernel(steps, first, every, *self._kernel_arguments(), trace, trace_tips)
         self._finish(steps)
 
     def _finish(self, steps: int) -> None:
@@ -649,9 +633,8 @@ class Simulator:
         """
         Step for ``duration`` seconds, recording the state every ``record_every`` steps.
 
-        ``progress(n)`` is called with the number of steps done since the last call. Without
-        bending walls the steps run inside the kernel: one call a run, or about 200 with
-        ``progress``.
+        ``progress(n)`` is called with the number of steps done since the last call. The steps
+        run inside the kernel: one call a run, or about 200 with ``progress``.
         """
         steps = int(round(duration / self.dt))
         n_rec = steps // record_every + 1
@@ -664,16 +647,7 @@ class Simulator:
         done = 0
         while done < steps:
             n = min(chunk, steps - done)
-            if self.walls is None:
-                self._advance(n, done, record_every, trace, trace_tips)
-            else:
-                for k in range(done + 1, done + n + 1):
-                    self.step()
-                    if k % record_every == 0:
-                        self._record(trace, k // record_every)
-                        if contacts:
-                            trace_tips[k // record_every, 0] = self.contacts.normal
-                            trace_tips[k // record_every, 1] = self.contacts.tangential
+            self._advance(n, done, record_every, trace, trace_tips)
             done += n
             if progress is not None:
                 progress(n)

@@ -31,20 +31,22 @@ and 40 Hz for the tissue set, against a 1-2 Hz helix and its ~12 Hz link passing
 because the walls are long next to the decay length 1 / beta (about a centimetre).
 
 Coupling: the forces depend on the depths, which depend on the deflections the forces make.
-Each step solves it for the tips that can touch (``Walls.solve``): Newton on their deflections,
-wall by wall, the contact law's hysteresis factor included so that the walls and the law agree
-to TOLERANCE, stepping only as far as the law's next kink (contact onset, leaving the
-hysteresis band) so that it cannot cycle, from the last two steps' shapes extrapolated. The
-others load nothing and read the shape.
+Each step solves it for the tips that can touch (the compiled kernel ``bend_walls``): Newton on
+their deflections, wall by wall, the contact law's hysteresis factor included so that the walls
+and the law agree to TOLERANCE, stepping only as far as the law's next kink (contact onset,
+leaving the hysteresis band) so that it cannot cycle, from the last two steps' shapes
+extrapolated. The others load nothing and read the shape.
 """
 from __future__ import annotations
 
-from typing import Any, Callable, cast, List, Optional, Sequence, Tuple, Union
+import math
+from typing import Any, Callable, cast, Sequence, Tuple, Union
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from saw_ros.core.contact import ContactLaw, ContactState
+from saw_ros.core.contact import DEPTH, EXPONENT, KN_HALF, KN_MEAN, KN_RATE, PENETRATION, SEEN, X
 from saw_ros.core.params import Scenario
 
 # Newton steps per time step at most, from the last two steps' shapes, until the deflections
@@ -88,13 +90,237 @@ def point_deflection(r: ArrayLike, load: float, foundation: float, bending: floa
                 load * beta / (2.0 * foundation) * np.exp(-u) * (np.cos(u) + np.sin(u)))
 
 
+# Columns of a scenario's walls (Walls.constants[s]): 1 where its walls bend, beta (1/m), half
+# the contact width (m), the gain 1 / (2 k b) (m/N), the tolerance of the solve (m); then what
+# the solve keeps: the largest deflection of the last step (m), the depth below which a tip
+# cannot touch (m, < 0), the Newton iterations and the steps short of the tolerance so far, and
+# how many tips per wall the last step solved for.
+ACTIVE, BETA, HALF, GAIN, TOLERANCE_COLUMN = range(5)
+LARGEST, REACH, ITERATIONS, UNCONVERGED, SOLVED_COUNT = range(5, 10)
+WALL_FIELDS = 10
+# Rows of a scenario's per-tip wall state (Walls.state[s], (WALL_ROWS, 2, n): bottom wall, top
+# wall): the deflection the last step solved at each tip (0: not solved for), the one before,
+# each tip's load on its wall (N), and the tips the last step solved for (indices along the
+# wall, the first SOLVED_COUNT of each row).
+SOLVED, SOLVED_BEFORE, LOADS, CHOSEN = range(4)
+WALL_ROWS = 4
+# Scratch rows of bend_walls before its two n x n matrices.
+WORK_ROWS = 11
+
+
+@numba.njit(cache=True)
+def patch_bracket(r: float, beta: float, half: float) -> float:
+    """Return the bracket of a patch load's deflection at distance r >= 0 (module docstring)."""
+    if r <= half:
+        u, v = half + r, abs(half - r)
+        return 2.0 - math.exp(-beta * u) * math.cos(beta * u) - \
+            math.exp(-beta * v) * math.cos(beta * v)
+    u, v = r - half, r + half
+    return math.exp(-beta * u) * math.cos(beta * u) - math.exp(-beta * v) * math.cos(beta * v)
+
+
+@numba.njit(cache=True)
+def fill_compliance(x: np.ndarray, count: int, beta: float, half: float, gain: float,
+                    g: np.ndarray) -> None:
+    """
+    Fill g[:count, :count] (m/N): the deflection at tip i per newton on tip j of one wall.
+
+    Outside a patch D(r - b/2) - D(r + b/2) = Re(exp(z (r - b/2)) (1 - exp(z b))), z = -(1 - i)
+    beta: bounded factors however wide the patch against the decay length; under it (two tips
+    closer than half a contact width, and each tip on itself) the patch formula.
+    """
+    z = complex(-beta, beta)
+    outside = gain * (1.0 - np.exp(z * (2.0 * half)))
+    itself = gain * (2.0 - 2.0 * np.exp(z * half).real)
+    for i in range(count):
+        g[i, i] = itself
+        for j in range(i):
+            r = abs(x[i] - x[j])
+            if r < half:
+                value = gain * patch_bracket(r, beta, half)
+            else:
+                u = r - half
+                decay = math.exp(-beta * u)
+                value = decay * (math.cos(beta * u) * outside.real -
+                                 math.sin(beta * u) * outside.imag)
+            g[i, j] = value
+            g[j, i] = value
+
+
+@numba.njit(cache=True)
+def solve_in_place(a: np.ndarray, b: np.ndarray, count: int) -> None:
+    """Solve a[:count, :count] y = b[:count] by Gaussian elimination (partial pivoting); y in b."""
+    for k in range(count):
+        pivot = k
+        for i in range(k + 1, count):
+            if abs(a[i, k]) > abs(a[pivot, k]):
+                pivot = i
+        if pivot != k:
+            for j in range(k, count):
+                a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
+            b[k], b[pivot] = b[pivot], b[k]
+        for i in range(k + 1, count):
+            f = a[i, k] / a[k, k]
+            if f != 0.0:
+                for j in range(k + 1, count):
+                    a[i, j] -= f * a[k, j]
+                b[i] -= f * b[k]
+    for k in range(count - 1, -1, -1):
+        total = b[k]
+        for j in range(k + 1, count):
+            total -= a[k, j] * b[j]
+        b[k] = total / a[k, k]
+
+
+@numba.njit(cache=True)
+def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.ndarray,
+                 count: int, law: np.ndarray, scale: float, tolerance: float,
+                 work: np.ndarray, jacobian: np.ndarray, force: np.ndarray) -> Tuple[int, bool]:
+    """
+    Newton on one wall's deflections w[:count] until the contact law's forces make them.
+
+    ``depth`` the tips' depths into the rigid wall, ``w`` the first guess (solved in place),
+    ``g`` the compliance, ``before`` the law's last depths, ``law`` its folded constants
+    (core.contact's LAW_FIELDS), ``scale`` the convergence test's scale (p times twice a tip's
+    own compliance). Leaves the forces in ``force``; returns (iterations, converged).
+    """
+    mean, half, rate, p = law[KN_MEAN], law[KN_HALF], law[KN_RATE], law[EXPONENT]
+    band = half / rate
+    factor, root, slope, step = work[0], work[1], work[2], work[3]
+    loading, touching = work[4], work[5]
+    converged = False
+    iteration = 0
+    for iteration in range(MAX_NEWTON):
+        for i in range(count):
+            delta = max(depth[i] - w[i], 0.0)
+            touching[i] = delta
+            # The normal law of core.contact at this depth, hysteresis factor included:
+            # F = (k_mean + clip((delta - before) rate, -k_half, k_half)) delta^p.
+            change = (delta - before[i]) * rate
+            factor[i] = max(min(change, half), -half) + mean
+            root[i] = delta ** (p - 1.0)
+            force[i] = factor[i] * (root[i] * delta)
+            loading[i] = rate if abs(change) < half else 0.0     # the band's rate term
+            slope[i] = factor[i] * root[i] * p + loading[i] * (root[i] * delta)
+        # residual = w - G F; d residual / d w = I + G diag(slope)  (delta = d - w).
+        for i in range(count):
+            carried = 0.0
+            for j in range(count):
+                carried += g[i, j] * force[j]
+                jacobian[i, j] = g[i, j] * slope[j]
+            jacobian[i, i] += 1.0
+            step[i] = w[i] - carried
+        solve_in_place(jacobian, step, count)
+        # The law is smooth between its kinks only (contact; leaving or entering the
+        # hysteresis band, on either side): a step that would carry a tip across one stops just
+        # past it, the next starts from the other side's slope. The residual is monotone in w,
+        # so this cannot cycle.
+        fraction = 1.0
+        for i in range(count):
+            ahead = depth[i] - w[i]
+            for kink in (before[i] - band, before[i] + band, 0.0):
+                a = ahead - kink
+                b = a + step[i]
+                if a * b < 0.0:
+                    fraction = min(fraction, a / (a - b))
+        if fraction < 1.0:
+            fraction = min(fraction * (1.0 + 1e-6) + 1e-12, 1.0)
+        # Converged when what the step leaves of the residual, G F'' step^2 / 2 (twice the
+        # tip's own compliance for its neighbours'), is below the tolerance; in the law's
+        # straight parts (free, or a linear law) the step is exact.
+        left = 0.0
+        for i in range(count):
+            w[i] -= fraction * step[i]
+            curvature = (p - 1.0) * factor[i] / max(touching[i], 1e-300) + 2.0 * loading[i]
+            left = max(left, curvature * root[i] * step[i] * step[i] * scale)
+        if left < tolerance and fraction == 1.0:
+            converged = True
+            break
+    return iteration + 1, converged
+
+
+@numba.njit(cache=True)
+def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.ndarray,
+               work: np.ndarray) -> None:
+    """
+    Solve one scenario's two walls against its tips' contact law (compiled kernel).
+
+    Sets the tips' SEEN depth (core.contact's rows) to the PENETRATION less the walls'
+    deflection. Only the tips that can touch are solved for: those deeper than
+    CANDIDATE_MARGIN of the last step's largest deflection below the rigid surface (a wall
+    rises towards a tip by at most exp(-3 pi / 4) sin(3 pi / 4) = 7 % of the deflection
+    beside it, Hetenyi), the same number K on both walls (the deepest); the others load
+    nothing and read the shape. First guess: the last two steps' deflections extrapolated.
+    ``walls``: the scenario's WALL_FIELDS, ``state`` (WALL_ROWS, 2, n), ``work`` a scratch
+    (WORK_ROWS + 2 n, n) array.
+    """
+    n = state.shape[2]
+    reach = walls[REACH]
+    count = 0
+    for wall in range(2):
+        inside = 0
+        for i in range(n):
+            if tips[PENETRATION, wall * n + i] > reach:
+                inside += 1
+        count = max(count, inside)
+    walls[SOLVED_COUNT] = count
+    largest = -np.inf
+    most = 0
+    all_converged = True
+    x, depth, before, w, force = work[6], work[7], work[8], work[9], work[10]
+    g, jacobian = work[WORK_ROWS:WORK_ROWS + n], work[WORK_ROWS + n:]
+    for wall in range(2):
+        last, prior = state[SOLVED, wall], state[SOLVED_BEFORE, wall]
+        state[LOADS, wall] = 0.0
+        if count == 0:
+            prior[:] = last
+            last[:] = 0.0
+            continue
+        chosen = np.argsort(tips[PENETRATION, wall * n:(wall + 1) * n])[n - count:]
+        for k in range(count):
+            i = chosen[k]
+            x[k], depth[k], before[k] = tips[X, wall * n + i], tips[PENETRATION, wall * n + i], \
+                tips[DEPTH, wall * n + i]
+            # The last two steps' deflections extrapolated (a tip not solved for before starts
+            # from 0 and settles in the first Newton step).
+            w[k] = 2.0 * last[i] - prior[i]
+        # The last step's solution becomes this step's "before"; this step's starts empty.
+        prior[:] = last
+        last[:] = 0.0
+        fill_compliance(x, count, walls[BETA], walls[HALF], walls[GAIN], g)
+        scale = law[EXPONENT] * 2.0 * g[0, 0]
+        iterations, converged = balance_wall(depth, w, g, before, count, law, scale,
+                                             walls[TOLERANCE_COLUMN], work, jacobian, force)
+        most = max(most, iterations)
+        all_converged = all_converged and converged
+        for k in range(count):
+            i = chosen[k]
+            if prior[i] == 0.0:
+                prior[i] = w[k]        # a tip solved for the first time: no trend
+            last[i] = w[k]
+            state[LOADS, wall, i] = force[k]
+            state[CHOSEN, wall, k] = i
+            tips[SEEN, wall * n + i] = depth[k] - w[k]
+            largest = max(largest, w[k])
+    if count == 0:
+        walls[LARGEST] = 0.0
+        walls[REACH] = -MIN_MARGIN
+        return
+    walls[ITERATIONS] += most
+    if not all_converged:
+        walls[UNCONVERGED] += 1.0
+    walls[LARGEST] = largest
+    walls[REACH] = largest * -CANDIDATE_MARGIN - MIN_MARGIN
+
+
 class Walls:
     """
     The bending walls of S scenarios stepped together (only those with foundation_stiffness > 0).
 
     ``side``: -1 for the bottom surface's tips, +1 for the top's (kinematics.TipTable.side: the
     bottom tips first, then as many top tips), so that an (S, P) array of the tips is an
-    (S, 2, n) view by surface.
+    (S, 2, n) view by surface. The class holds the constants and the state ``bend_walls``
+    advances (``constants``, ``state``); the step itself is the kernel's.
     """
 
     def __init__(self, scenarios: Sequence[Scenario], side: np.ndarray):
@@ -112,48 +338,47 @@ class Walls:
         self.beta = (k / (4.0 * ei)) ** 0.25
         self.half = b / 2.0
         self.gain = np.where(self.active, 1.0 / (2.0 * k * b), 0.0)    # m/N before the D terms
-        # D(u) = exp(-beta u) cos(beta u) = Re exp(z u), z = -(1 - i) beta: one exp. Outside a
-        # patch, D(r - b/2) - D(r + b/2) = Re(exp(z (r - b/2)) (1 - exp(z b))): bounded factors
-        # however wide the patch is against the decay length. Under it, 2 - 2 D(b/2).
-        z = -(1.0 - 1.0j) * self.beta
-        column: Callable[[np.ndarray], np.ndarray] = lambda a: a[:, None, None, None]  # noqa: E731
-        self._z, self._half = column(z), column(self.half)
-        self._outside = column(self.gain * (1.0 - np.exp(z * b)))
-        self._under = self.gain * (2.0 - 2.0 * np.exp(z * self.half).real)
-        self._compliant = np.repeat(2.0 * self._under, 2)[:, None]     # per wall (2 S, 1)
-        # What the outside formula gives a tip on itself (r = 0), replaced by _under, per size.
-        itself = self._under - (np.exp(z * self.half) * self._outside[:, 0, 0, 0]).real
-        self._on_itself = [itself[:, None, None, None] * np.eye(m) for m in range(n + 1)]
-        self._rows = (np.arange(2 * count) * n).reshape(count, 2, 1)   # (S, 2, n) -> flat
-        self.largest = np.zeros(count)                      # the largest deflection, m
-        # Tips shallower than this (m, < 0: outside the rigid surface) cannot touch (solve).
-        self._reach = np.full((count, 1, 1), -MIN_MARGIN)
-        self.iterations = 0                                 # Newton iterations so far
-        self.unconverged = 0        # steps that ended at MAX_NEWTON, short of TOLERANCE
-        self._x = np.zeros((count, 2, n))                   # where the tips were, m
-        # The deflection the last two steps solved at each tip (0 where a tip was not solved
-        # for), for the next step's first guess.
-        self._solved = np.zeros((count, 2, n))
-        self._solved_before = np.zeros((count, 2, n))
-        # Which tips the last step solved for (flat indices) and their loads, N.
-        self._flat = np.zeros((count, 2, 0), int)
-        self._loads = np.zeros((count, 2, 0))
-        self._shape: Optional[np.ndarray] = np.zeros((count, 2, n))
-        self._eyes = [np.eye(k) for k in range(n + 1)]
+        self.constants = np.zeros((count, WALL_FIELDS))
+        self.constants[:, ACTIVE] = self.active
+        self.constants[:, BETA] = self.beta
+        self.constants[:, HALF] = self.half
+        self.constants[:, GAIN] = self.gain
+        self.constants[:, TOLERANCE_COLUMN] = TOLERANCE
+        self.state = np.zeros((count, WALL_ROWS, 2, n))
+        self.largest = self.constants[:, LARGEST]           # the largest deflection, m
+        # The tips' abscissae (S, P), m: the simulator's, to draw the shape from the loads.
+        self.tip_x = np.zeros((count, 2 * n))
+        self.reset()
+
+    @property
+    def iterations(self) -> int:
+        """Return the Newton iterations so far (each step counts its walls' most)."""
+        return int(self.constants[:, ITERATIONS].sum())
+
+    @property
+    def unconverged(self) -> int:
+        """Return the scenario-steps whose solve ended at MAX_NEWTON, short of the tolerance."""
+        return int(self.constants[:, UNCONVERGED].sum())
 
     @property
     def forces(self) -> np.ndarray:
         """Return each tip's load on its wall (S, 2, n), N: bottom tips, then top."""
-        out = np.zeros((len(self.beta), 2, self.n))
-        out.ravel()[self._flat] = self._loads
-        return out
+        return self.state[:, LOADS].copy()
+
+    @property
+    def solved_tips(self) -> np.ndarray:
+        """Return the flat (S P) indices of the tips the last step solved for, (S, 2, K)."""
+        counts = self.constants[:, SOLVED_COUNT].astype(int)
+        if (counts != counts[0]).any():
+            raise ValueError('the scenarios solved for different numbers of tips')
+        chosen = self.state[:, CHOSEN, :, :counts[0]].astype(int)
+        rows = (np.arange(2 * len(counts)) * self.n).reshape(-1, 2, 1)
+        return chosen + rows
 
     @property
     def shape_by_surface(self) -> np.ndarray:
         """Return the deflection at each tip (S, 2, n), m, > 0 away: bottom tips, then top."""
-        if self._shape is None:     # computed when asked: the step itself needs only the loaded
-            self._shape = (self.compliance(self._x) @ self.forces[..., None])[..., 0]
-        return self._shape
+        return cast(np.ndarray, (self.compliance(self.tip_x) @ self.forces[..., None])[..., 0])
 
     @property
     def deflection(self) -> np.ndarray:
@@ -163,16 +388,12 @@ class Walls:
     @property
     def solved(self) -> np.ndarray:
         """Return the deflection the last step solved at each tip (S, P), m (0: not solved)."""
-        return self._solved.reshape(len(self.beta), 2 * self.n)
+        return self.state[:, SOLVED].reshape(len(self.beta), 2 * self.n)
 
     def reset(self) -> None:
-        self.largest[:] = 0.0
-        self._reach[:] = -MIN_MARGIN
-        self._solved[:] = 0.0
-        self._solved_before[:] = 0.0
-        self._flat = self._flat[..., :0]
-        self._loads = self._loads[..., :0]
-        self._shape = np.zeros_like(self._x)
+        self.constants[:, LARGEST:] = 0.0
+        self.constants[:, REACH] = -MIN_MARGIN
+        self.state[:] = 0.0
 
     def _by_surface(self, values: Any) -> Any:
         """Return (S, P) as an (S, 2, n) view, bottom tips then top tips; scalars stay scalars."""
@@ -184,79 +405,17 @@ class Walls:
         """
         Return G (S, 2, m, m), m/N: deflection at tip i per newton on tip j of the same surface.
 
-        ``x`` (S, P), or by surface (S, 2, m): the tips' abscissae.
+        ``x`` (S, P), or by surface (S, 2, m): the tips' abscissae (``fill_compliance``).
         """
-        xs = self._by_surface(x) if np.ndim(x) == 2 else x
-        r = np.abs(xs[..., :, None] - xs[..., None, :])
-        g = (np.exp(self._z * np.abs(r - self._half)) * self._outside).real
+        xs = self._by_surface(x) if np.ndim(x) == 2 else np.asarray(x)
         m = xs.shape[-1]
-        g += self._on_itself[m]
-        # Two tips closer than half a contact width (wide contacts only): the patch formula.
-        under = r < self._half
-        if np.count_nonzero(under) > under.size // m:
-            beta = np.broadcast_to(self.beta[:, None, None, None], r.shape)[under]
-            half = np.broadcast_to(self._half, r.shape)[under]
-            gain = np.broadcast_to(self.gain[:, None, None, None], r.shape)[under]
-            g[under] = gain * _patch(r[under], beta, half)
-        return cast(np.ndarray, g)
-
-    def solve(self, penetration: np.ndarray, x: np.ndarray, state: ContactState,
-              law: ContactLaw) -> np.ndarray:
-        """
-        Return the depth (S, P) the contact law sees: ``penetration`` less the walls' deflection.
-
-        ``penetration``: against the rigid surfaces (> 0 inside); ``state``, ``law``: the
-        contact law's memory and constants (core.contact), whose normal force the deflection
-        must balance. Keeps the deflection at each tip (``deflection``) and the forces.
-
-        Only the tips that can touch are solved for: those deeper than CANDIDATE_MARGIN of the
-        last step's largest deflection below the rigid surface (a wall rises towards a tip by
-        at most exp(-3 pi / 4) sin(3 pi / 4) = 7 % of the deflection beside it, Hetenyi), the
-        same number K of them per surface across the batch (the deepest), the rest loads
-        nothing and only reads the shape.
-        """
-        d = self._by_surface(penetration)
-        count = int((d > self._reach).sum(axis=-1).max())
-        self._x[:] = self._by_surface(x)
-        self._shape = None
-        # The last two steps' solutions; the older buffer takes this step's.
-        last, prior = self._solved, self._solved_before
-        self._solved, self._solved_before = prior, last
-        if count == 0:
-            prior[:] = 0.0
-            self._flat = self._flat[..., :0]
-            self._loads = self._loads[..., :0]
-            self.largest[:] = 0.0
-            self._reach[:] = -MIN_MARGIN
-            return penetration.copy()
-        flat = np.argsort(d, axis=-1)[..., -count:]        # (S, 2, K): the deepest
-        flat += self._rows
-        # One row per wall of each scenario (2 S, K) from here: each is solved on its own.
-        flat = flat.reshape(-1, count)
-        take: Callable[[Any], Any] = lambda a: (  # noqa: E731
-            a.ravel()[flat] if isinstance(a, np.ndarray) else a)
-        dk = penetration.ravel()[flat]
-        # First guess: the deflection of the last two steps, extrapolated (it moves smoothly;
-        # a tip not solved for before starts from 0 and settles in the first Newton step).
-        w = last.ravel()[flat]
-        w += w
-        w -= prior.ravel()[flat]
-        prior[:] = 0.0
-        w, force = self._balance(dk, w, self.compliance(x.ravel()[flat].reshape(
-            -1, 2, count)).reshape(-1, count, count), state.depth.ravel()[flat],
-            [take(v) for v in (law.kn_mean, law.kn_half, law.kn_rate, law.exponent)])
-        self._flat, self._loads = flat.reshape(-1, 2, count), force.reshape(-1, 2, count)
-        # This step's solution; a tip solved for the first time is its own before (no trend).
-        fresh = last.ravel()[flat] == 0.0
-        if fresh.any():
-            last.ravel()[flat[fresh]] = w[fresh]
-        prior.ravel()[flat] = w
-        self.largest[:] = w.reshape(-1, 2 * count).max(axis=1)
-        np.multiply(self.largest[:, None, None], -CANDIDATE_MARGIN, out=self._reach)
-        self._reach -= MIN_MARGIN
-        depth = penetration.copy()
-        depth.ravel()[flat] = dk - w
-        return depth
+        g = np.zeros(xs.shape + (m,))
+        for i in range(xs.shape[0]):
+            for wall in range(xs.shape[1]):
+                fill_compliance(np.ascontiguousarray(xs[i, wall], dtype=float), m,
+                                float(self.beta[i]), float(self.half[i]), float(self.gain[i]),
+                                g[i, wall])
+        return g
 
     def shape(self, x_tips: np.ndarray, samples: np.ndarray) -> np.ndarray:
         """
@@ -272,91 +431,6 @@ class Walls:
                 r = samples[:, None] - xs[i, k][None, :]
                 out[i, k] = self.gain[i] * _patch(r, self.beta[i], self.half[i]) @ forces[i, k]
         return out
-
-    def _balance(self, dk: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.ndarray,
-                 constants: List[Any]) -> Tuple[np.ndarray, np.ndarray]:
-        """
-        Return the deflections (N, K) that the contact law's forces make, and those forces.
-
-        One row per wall: ``dk`` the tips' depths into the rigid wall, ``w`` a first guess,
-        ``g`` (N, K, K) the compliance, ``before`` the law's last depths; ``constants`` the
-        law's k_mean, k_half, k_rate and exponent (scalars or (N, K)). Newton on w, the
-        contact law's hysteresis factor included, per wall; the walls that have converged
-        leave the iteration.
-        """
-        mean, half, rate, p = constants
-        rows = np.arange(len(dk))                            # the walls still iterating
-        solved, loads = np.empty_like(w), np.empty_like(w)
-        # The convergence test's scale, p times twice each tip's own compliance (see below).
-        scale = p * self._compliant
-        eye = self._eyes[dk.shape[1]]
-        # The law's kinks in the depth: leaving its hysteresis band on either side (loading or
-        # unloading faster than hysteresis_speed), and contact.
-        kinks = np.stack((before - half / rate, before + half / rate, np.zeros_like(before)))
-        for iteration in range(MAX_NEWTON):
-            delta = dk - w
-            touching = np.maximum(delta, 0.0)
-            # The normal law of core.contact at this depth, hysteresis factor included:
-            # F = (k_mean + clip((delta - before) rate, -k_half, k_half)) delta^p.
-            change = touching - before
-            change *= rate
-            factor = np.minimum(change, half)
-            np.maximum(factor, -half, out=factor)
-            factor += mean
-            root = touching ** (p - 1.0)
-            power = root * touching
-            force = factor * power
-            slope = factor * root
-            slope *= p
-            loading = (np.abs(change) < half) * rate          # the band's rate term, N/m^(p+1)
-            slope += loading * power
-            residual = w - (g @ force[..., None])[..., 0]
-            # d residual / d w = I + G diag(slope)  (delta = d - w).
-            jacobian = g * slope[..., None, :]
-            jacobian += eye
-            step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
-            # The law is smooth between its kinks only (contact; leaving or entering the
-            # hysteresis band, on either side): a step that would carry a tip across one stops
-            # just past it, the next starts from the other side's slope. The residual is
-            # monotone in w, so this cannot cycle.
-            ahead = delta - kinks
-            behind = ahead + step
-            crosses = ahead * behind < 0.0
-            kinked = crosses.any()
-            if kinked:
-                to_kink = np.where(crosses, ahead / np.where(crosses, ahead - behind, 1.0), 1.0)
-                fraction = np.minimum(to_kink.min(axis=(0, 2)) * (1.0 + 1e-6) + 1e-12, 1.0)
-                w -= fraction[:, None] * step
-            else:
-                w -= step
-            # Converged when what the step leaves of the residual, G F'' step^2 / 2 (twice the
-            # tip's own compliance for its neighbours'), is below TOLERANCE; in the law's
-            # straight parts (free, or a linear law) the step is exact.
-            left = (p - 1.0) * factor
-            left /= np.maximum(touching, 1e-300)
-            left += loading + loading                          # F'' / (p delta^(p-1))
-            left *= root
-            left *= step * step
-            left *= scale
-            done = left.max(axis=1) < TOLERANCE
-            if kinked:
-                done &= fraction == 1.0
-            if done.all():
-                break
-            if done.any():
-                solved[rows[done]], loads[rows[done]] = w[done], force[done]
-                going = ~done
-                rows, dk, w, g = rows[going], dk[going], w[going], g[going]
-                before, force = before[going], force[going]
-                kinks = kinks[:, going]
-                scale = scale[going]
-                mean, half, rate, p = (v[going] if isinstance(v, np.ndarray) else v
-                                       for v in (mean, half, rate, p))
-        self.iterations += iteration + 1
-        if not done.all():
-            self.unconverged += 1
-        solved[rows], loads[rows] = w, force
-        return solved, loads
 
 
 def finite_difference_deflection(loads: Sequence[float], at: Sequence[float], foundation: float,

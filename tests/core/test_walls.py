@@ -110,7 +110,7 @@ def test_the_coupled_step_balances_the_walls_with_the_contact_law(walls):
     worst = 0.0
     for _ in range(1500):
         sim.step()
-        solved = sim.walls._flat                             # the tips each step solved for
+        solved = sim.walls.solved_tips                       # the tips each step solved for
         g = sim.walls.compliance(sim._x.ravel()[solved])
         carried = (g @ sim.contacts.normal.ravel()[solved][..., None])[..., 0]
         worst = max(worst, np.abs(carried - sim.walls.solved.ravel()[solved]).max())
