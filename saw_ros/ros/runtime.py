@@ -302,9 +302,14 @@ def check_params_file(path: str) -> None:
     """
     import yaml
     from saw_ros.core.params import ParameterError
+    # launch_ros writes a list parameter as a tuple (``!!python/tuple``), which rcl reads as a
+    # list: so does this check (safe_load refused `ros2 launch`'s recorder topics).
+    loader = type('ParamsLoader', (yaml.SafeLoader,), {})
+    loader.add_constructor('tag:yaml.org,2002:python/tuple',
+                           lambda load, node: load.construct_sequence(node))
     try:
         with open(path, encoding='utf-8') as f:
-            doc = yaml.safe_load(f)
+            doc = yaml.load(f, Loader=loader)     # noqa: S506 (a SafeLoader, one tag more)
     except FileNotFoundError:
         raise ParameterError(f'params file {path} does not exist') from None
     except OSError as exc:
