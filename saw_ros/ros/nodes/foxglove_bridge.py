@@ -44,7 +44,7 @@ PARAMETERS = (
     ('address', '127.0.0.1', spec_meta(
         '', 'interface the WebSocket server listens on; 127.0.0.1 = this machine only. 0.0.0.0 '
             'exposes every topic and the motor to anyone who reaches the port')),
-    ('port', 8765, spec_meta('', 'TCP port of the server (8765: Foxglove\'s default); 0 = any '
+    ('port', 8765, spec_meta('', "TCP port of the server (8765: Foxglove's default); 0 = any "
                                  'free port (said in the log)', 0, 65535)),
 )
 # Not offered: the raw frames (the compressed ones are the camera's stream here).

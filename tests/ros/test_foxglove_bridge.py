@@ -1,0 +1,165 @@
+"""
+The Foxglove bridge through the protocol, as the Foxglove app sees it (issue 34).
+
+The bridge runs as its own executable in the run's isolated DDS domain; the test connects as a
+Foxglove WebSocket client (saw_ros.graph.foxglove_client, on the websockets library), decodes
+what it receives from the channel's ros2msg schema alone (mcap_ros2's dynamic decoder, as
+Foxglove does: none of our message classes), and publishes through it. Every wait is on a
+condition with a timeout.
+"""
+import re
+
+import cv2
+import numpy as np
+import pytest
+from saw_ros.graph.foxglove_client import FoxgloveClient
+from saw_ros.graph.process import ManagedProcess, node_command, wait_for
+
+pytestmark = pytest.mark.ros
+
+from rclpy.serialization import serialize_message  # noqa: E402, I100
+from saw_ros.bag.schema import message_definition  # noqa: E402
+from saw_ros.interface import topics  # noqa: E402
+from saw_ros.ros.qos import message_class, profile  # noqa: E402
+
+COMMAND_TYPE = topics.topic(topics.MOTOR_COMMANDS).type
+
+
+def start(name, params, tmp_path):
+    return ManagedProcess(name, node_command(name, params=params), env=None, log_dir=tmp_path)
+
+
+def start_bridge(tmp_path):
+    """Start the bridge on a free port (port 0); return (process, its ws:// URL from its log)."""
+    bridge = start('foxglove_bridge', {'port': 0}, tmp_path)
+    found = []
+
+    def url():
+        found[:] = re.findall(r'Foxglove WebSocket on (ws://127\.0\.0\.1:\d+)', bridge.output())
+        return bool(found) or bridge.returncode is not None
+    assert wait_for(url, 30) and found, bridge.output()
+    return bridge, found[0]
+
+
+def decoder(client, name):
+    """Decode a topic's payloads from what the server advertised only (as Foxglove does)."""
+    from mcap_ros2._dynamic import generate_dynamic
+    channel = client.channels[name]
+    assert (channel['encoding'], channel['schemaEncoding']) == ('cdr', 'ros2msg')
+    assert channel['schemaName'] == topics.topic(name).type
+    # The full concatenated definition, as foxglove_bridge and rosbag2 send it.
+    assert channel['schema'] == message_definition(channel['schemaName'])
+    return generate_dynamic(channel['schemaName'], channel['schema'])[channel['schemaName']]
+
+
+def test_a_client_decodes_the_pose_the_camera_image_and_the_comparison(tmp_path):
+    bridge, url = start_bridge(tmp_path)
+    # The simulator steps once each of its topics has a subscriber: the bridge's, once the
+    # client subscribed to everything.
+    nodes = [start('simulator', {'duration': 2.5, 'real_time_factor': 1.0,
+                                 'wait_for_subscribers': 1}, tmp_path),
+             start('camera', {}, tmp_path), start('comparison', {'report_period': 0.5}, tmp_path)]
+    wanted = (topics.POSE, topics.IMAGE_COMPRESSED, topics.COMPARISON)
+    client = FoxgloveClient(url, keep=wanted)
+    try:
+        assert wait_for(lambda: set(wanted) <= set(client.channels), 10), client.channels
+        assert topics.IMAGE not in client.channels       # the camera as CompressedImage only
+        assert set(client.channels) == {t.name for t in topics.TOPICS} - {topics.IMAGE}
+        client.subscribe(client.channels)
+        assert wait_for(lambda: all(client.messages.get(n) for n in wanted), 60), (
+            client.counts, [p.output()[-600:] for p in nodes])
+        assert wait_for(lambda: nodes[0].returncode is not None, 60), nodes[0].output()
+    finally:
+        client.close()
+        for p in nodes + [bridge]:
+            p.stop(timeout=10)
+    pose = decoder(client, topics.POSE)
+    poses = [pose(data) for _, _, data in client.messages[topics.POSE]]
+    stamps = [p.header.stamp.sec * 10 ** 9 + p.header.stamp.nanosec for p in poses]
+    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+    assert poses[-1].header.frame_id == 'surface' and np.isfinite(poses[-1].pose.position.x)
+    assert poses[-1].pose.position.x > poses[0].pose.position.x      # the robot crawls forward
+    images = client.messages[topics.IMAGE_COMPRESSED]
+    image = decoder(client, topics.IMAGE_COMPRESSED)(images[-1][2])
+    assert 'jpeg' in image.format, image.format
+    frame = cv2.imdecode(np.frombuffer(bytes(image.data), np.uint8), cv2.IMREAD_COLOR)
+    assert frame is not None and frame.shape == (720, 1280, 3)
+    comparison = decoder(client, topics.COMPARISON)(client.messages[topics.COMPARISON][-1][2])
+    keys = {kv.key for kv in comparison.status[0].values}
+    assert 'comparison' in comparison.status[0].name and 'status' in keys, (
+        comparison.status[0].name, keys)
+    assert 'Traceback' not in bridge.output() and bridge.returncode == 0, bridge.output()
+
+
+def test_a_command_through_the_bridge_drives_the_simulated_motor(tmp_path):
+    bridge, url = start_bridge(tmp_path)
+    simulator = start('simulator', {'motor.voltage': 6.0, 'real_time_factor': 1.0,
+                                    'duration': 30.0, 'command_timeout': 0.0}, tmp_path)
+    client = FoxgloveClient(url, keep=[topics.MOTOR])
+    try:
+        assert wait_for(lambda: topics.MOTOR in client.channels, 10), client.channels
+        client.subscribe([topics.MOTOR])
+        motor = decoder(client, topics.MOTOR)
+        assert wait_for(lambda: client.messages.get(topics.MOTOR), 30), simulator.output()
+        assert motor(client.messages[topics.MOTOR][-1][2]).voltage == 6.0
+        channel = client.advertise(topics.MOTOR_COMMANDS, COMMAND_TYPE)
+        command = serialize_message(message_class(COMMAND_TYPE)(data=[9.0]))
+
+        def applied():
+            client.publish(channel, command)       # again until the bridge has matched
+            return motor(client.messages[topics.MOTOR][-1][2]).voltage == 9.0
+        assert wait_for(applied, 30, poll=0.1), (bridge.output(), simulator.output())
+    finally:
+        client.close()
+        simulator.stop(timeout=10)
+        bridge.stop(timeout=10)
+    assert 'Traceback' not in bridge.output() + simulator.output()
+    assert re.search(r'[1-9]\d* client commands published, 0 refused', bridge.output())
+
+
+def test_a_client_publishing_on_another_topic_is_refused_and_the_bridge_runs_on(
+        ros_context, tmp_path):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    node = Node('bridge_watcher', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    got = {topics.POSE: [], topics.MOTOR_COMMANDS: []}
+    for name, seen in got.items():
+        entry = topics.topic(name)
+        node.create_subscription(message_class(entry.type), name, seen.append,
+                                 profile(entry.qos), raw=True)
+    bridge, url = start_bridge(tmp_path)
+    client = FoxgloveClient(url)
+    try:
+        pose_type = topics.topic(topics.POSE).type
+        pose = serialize_message(message_class(pose_type)())
+        hostile = client.advertise(topics.POSE, pose_type)
+        wrong_type = client.advertise(topics.MOTOR_COMMANDS, pose_type)
+        command = client.advertise(topics.MOTOR_COMMANDS, COMMAND_TYPE)
+        client.publish(hostile, pose)
+        client.publish(wrong_type, pose)
+        client.publish(command, b'\x00\x01\x00\x00\x07')             # not a Float64MultiArray
+        client.publish(999, pose)      # never advertised: the SDK drops it before the bridge
+        assert wait_for(lambda: client.statuses, 10), bridge.output()
+        assert 'clients may publish on /saw/motor_controller/commands only' in \
+            client.statuses[0]['message']
+        good = serialize_message(message_class(COMMAND_TYPE)(data=[3.0]))
+
+        def delivered():
+            client.publish(command, good)
+            return bool(got[topics.MOTOR_COMMANDS])
+        assert wait_for(delivered, 30, poll=0.1, spin=lambda t: executor.spin_once(
+            timeout_sec=t)), bridge.output()
+    finally:
+        client.close()
+        bridge.stop(timeout=10)
+        executor.shutdown(timeout_sec=1)
+        node.destroy_node()
+    assert got[topics.POSE] == [], 'a client published on /saw/pose through the bridge'
+    assert set(got[topics.MOTOR_COMMANDS]) == {good}
+    log = bridge.output()
+    assert bridge.returncode == 0 and 'Traceback' not in log, log
+    assert 'refused, not published: client' in log
+    assert re.search(r'stopped: \d+ messages forwarded, [1-9]\d* client commands published, '
+                     r'5 refused', log), log
