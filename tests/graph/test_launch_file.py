@@ -40,7 +40,10 @@ def test_the_launch_file_starts_the_pipelines_nodes_with_the_pipelines_readiness
     text = LAUNCH.read_text(encoding='utf-8')
     # The recorder starts when the readiness probe exits; the run ends with the comparison.
     assert "'saw_ros.ros.ready'" in text and 'OnProcessExit(target_action=probe' in text
-    assert "target_action=nodes['comparison']" in text and 'topics.recorded_topics()' in text
+    assert "nodes['comparison']" in text and 'topics.recorded_topics()' in text
+    # Issue 34's arguments: the camera (with vision and comparison), the controller, Foxglove.
+    assert {'camera', 'controller', 'target_speed', 'foxglove'} <= set(_arguments())
+    assert "executable='foxglove_bridge'" in text
     assert "config_path('fastdds.xml')" in text and 'FASTRTPS_DEFAULT_PROFILES_FILE' in text
     assert compile(text, str(LAUNCH), 'exec')
 
