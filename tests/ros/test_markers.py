@@ -128,5 +128,9 @@ def test_viewer_configs_name_our_topics():
     assert layout['configById']['3D!saw_markers']['followTf'] == 'surface'
     rviz = (docs / 'saw_ros.rviz').read_text()
     assert 'Fixed Frame: surface' in rviz
-    for name in (table.MARKERS, table.TRACKING_MARKERS, table.IMAGE):
+    for name in (table.MARKERS, table.TRACKING_MARKERS, table.IMAGE, table.ROBOT_DESCRIPTION):
         assert f'Value: {name}\n' in rviz
+    # The robot model (issue 34): the URDF on its latched topic, drawn from the simulator's TF.
+    assert 'Class: rviz_default_plugins/RobotModel' in rviz
+    assert 'Durability Policy: Transient Local' in rviz
+    assert layout['configById']['3D!saw_markers']['topics'][table.ROBOT_DESCRIPTION]['visible']
