@@ -23,6 +23,15 @@ the left over red objects and two static pink discs: frames with both markers me
 of those with both in full view; >= 95) and ``tracker_silent_wrong_pct`` (over those clips and
 a partly hidden robot, a 3 % zoom, and the climb told the wrong slope: the share of runs that
 would print a speed more than 2 % wrong without a warning; goal 0).
+
+Issue 32 figures: a camera that is not square to the robot's plane. The lens calibrated from a
+board waved in front of it (``footage.BoardClip``, 1280x720, f = 1200 px, barrel k1 = -0.12):
+``camera_calibration_focal_error_pct`` (<= 0.5) and ``camera_calibration_reprojection_px``
+(RMS, <= 0.3); the robot filmed at yaw +-18 deg and pitch 10 deg through that lens
+(``footage.Shot``), the plane from a board lying in it: ``tracker_perspective_speed_error_pct``
+(the worse clip, <= 0.5); the same clips with only a ruler scale (at the picture's centre) or only
+the marker spacing: ``tracker_perspective_uncalibrated_silent_wrong_pct`` (runs more than 1 %
+wrong without a warning; goal 0).
 """
 import time
 
@@ -37,7 +46,9 @@ KEYS = ('tracker_fps', 'render_fps', 'tracker_position_rms_mm', 'tracker_speed_e
         'tracker_pitch_error_deg', 'tracker_cluttered_speed_error_pct',
         'tracker_cluttered_ok_frames_pct', 'tracker_handheld_speed_error_pct',
         'tracker_unknown_slope_speed_error_pct', 'tracker_cluttered_start_ok_frames_pct',
-        'tracker_silent_wrong_pct')
+        'tracker_silent_wrong_pct', 'camera_calibration_focal_error_pct',
+        'camera_calibration_reprojection_px', 'tracker_perspective_speed_error_pct',
+        'tracker_perspective_uncalibrated_silent_wrong_pct')
 MARKER_SPACING = 0.32        # m, the renderer's markers at body x = +-0.16
 
 
@@ -67,7 +78,7 @@ def run(quick: bool = False) -> dict:
     hard = evaluate(sim_run, hard_camera, options,
                     TrackerConfig(marker_spacing=MARKER_SPACING, steady_window=window),
                     start=start, scene=scene)
-    return {**figures(quick),
+    return {**figures(quick), **perspective_figures(quick),
             'tracker_fps': round(tracker_fps, 1), 'render_fps': round(render_fps, 1),
             'tracker_position_rms_mm': round(ev.position_rms_mm, 4),
             'tracker_speed_error_pct': round(ev.speed_error_pct, 4),
@@ -105,3 +116,54 @@ def figures(quick: bool = False) -> dict:
     out['tracker_silent_wrong_pct'] = round(
         100.0 * sum(r.silent_wrong for r in results.values()) / len(results), 2)
     return out
+
+
+def perspective_figures(quick: bool = False) -> dict:
+    """Return the issue-32 keys: the lens calibrated, and the clips with and without it."""
+    from saw_ros.vision import calibration, perspective
+    from saw_ros.vision.footage import BoardClip
+    from saw_ros.vision.offline import measure_plane, track_video
+    barrel = (-0.12, 0.02, 0.0, 0.0)
+    board = calibration.Board.parse('chessboard:9x6:0.025')
+    clip = BoardClip(board, width=1280, height=720, focal=1200.0, dist_coeffs=barrel,
+                     views=12 if quick else 20, near=0.6, far=1.0)
+    lens = calibration.calibrate(calibration.detect_views(clip.frames(), board, clip.size))
+    out = {'camera_calibration_focal_error_pct': round(
+        100.0 * abs(float(lens.focal) / clip.focal - 1), 4),
+           'camera_calibration_reprojection_px': round(lens.rms_px, 4)}
+    duration, window = (4.5, 2.0) if quick else (8.0, 4.0)
+    config = TrackerConfig(steady_window=window)
+    errors, silent, runs = [], 0, 0
+    for yaw in ((18.0,) if quick else (18.0, -18.0)):
+        # The robot starts left of the centre and ends right of it: a ruler at the centre is
+        # wrong on both sides (scale = f / distance = 1200 px/m there, square).
+        shot = Shot(duration=duration, yaw_deg=yaw, pitch_deg=10.0, dist_coeffs=barrel,
+                    start_x=-0.3)
+        kw = {'center_x': 0.0, 'center_y': shot.track_y}
+        truth = shot.mean_speed()
+        view, _ = calibration.Detector(board).find(shot.board_still(board, at=-0.1 + 0.03j))
+        lens_kw = lens.camera_kw()
+        undistort = CameraModel(width=shot.width, height=shot.height, **lens_kw).undistort
+        plane, _ = calibration.plane_from_view(view, undistort)
+        results, _ = track_video(shot, dict(kw, plane=tuple(plane.ravel()), **lens_kw), config,
+                                 slope_known=False)
+        errors.append(100.0 * abs(_steady(results) / truth - 1))
+        # Uncalibrated: a ruler at the picture's centre, or the marker spacing alone.
+        results, tracker = track_video(shot, dict(kw, scale=shot.ruler_scale()), config,
+                                       slope_known=False)
+        along = perspective.fit(*perspective.along_track(results, complex(0.0, shot.track_y)))
+        warned = bool(tracker.warnings) or (along is not None and along.significant)
+        silent += abs(_steady(results) / truth - 1) > 0.01 and not warned
+        measured = measure_plane(shot, kw, config, shot.spacing, slope_known=False)
+        results, tracker = track_video(shot, measured.camera_kw(kw), config, slope_known=False)
+        silent += abs(_steady(results) / truth - 1) > 0.01 and not tracker.warnings
+        runs += 2
+    out['tracker_perspective_speed_error_pct'] = round(max(errors), 4)
+    out['tracker_perspective_uncalibrated_silent_wrong_pct'] = round(100.0 * silent / runs, 2)
+    return out
+
+
+def _steady(results) -> float:
+    """Return the last steady speed of a run (inf without one: as wrong as can be)."""
+    return next((r.steady_speed for r in reversed(results) if r.steady_speed is not None),
+                float('inf'))
