@@ -141,7 +141,9 @@ def perspective_figures(quick: bool = False) -> dict:
                     start_x=-0.3)
         kw = {'center_x': 0.0, 'center_y': shot.track_y}
         truth = shot.mean_speed()
-        view, _ = calibration.Detector(board).find(shot.board_still(board, at=-0.1 + 0.03j))
+        view, why = calibration.Detector(board).find(shot.board_still(board, at=-0.1 + 0.03j))
+        if view is None:
+            raise RuntimeError(f'the board lying in the plane was not found: {why}')
         lens_kw = lens.camera_kw()
         undistort = CameraModel(width=shot.width, height=shot.height, **lens_kw).undistort
         plane, _ = calibration.plane_from_view(view, undistort)
@@ -155,6 +157,8 @@ def perspective_figures(quick: bool = False) -> dict:
         warned = bool(tracker.warnings) or (along is not None and along.significant)
         silent += abs(_steady(results) / truth - 1) > 0.01 and not warned
         measured = measure_plane(shot, kw, config, shot.spacing, slope_known=False)
+        if measured is None:
+            raise RuntimeError('the marker spacing was not measured on the perspective clip')
         results, tracker = track_video(shot, measured.camera_kw(kw), config, slope_known=False)
         silent += abs(_steady(results) / truth - 1) > 0.01 and not tracker.warnings
         runs += 2

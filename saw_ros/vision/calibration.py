@@ -195,7 +195,7 @@ class Detector:
         if not found:
             # (A chessboard cut by the picture's edge or hidden in part is not found at all.)
             return None, 'no board'
-        sharp = cv2.estimateChessboardSharpness(grey, size, corners)[0][0]
+        sharp = float(np.ravel(cv2.estimateChessboardSharpness(grey, size, corners)[0])[0])
         if not sharp <= MAX_EDGE_PX:
             return None, 'blurred'
         corners = cv2.cornerSubPix(grey, corners, (5, 5), (-1, -1),

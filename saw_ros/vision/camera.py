@@ -202,7 +202,7 @@ class CameraModel:
 
     def _plane_scale(self) -> float:
         """Return the plane's px per metre at the principal point (root of the area ratio)."""
-        h = self.homography
+        h = np.array(self.plane).reshape(3, 3)
         cx, cy = self.principal_point
         x, y, w = h @ np.array([cx, cy, 1.0])
         # The Jacobian of (u, v) -> (x / w, y / w) at the principal point, m per px

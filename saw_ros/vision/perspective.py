@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -123,7 +123,7 @@ def fit(front: Sequence[float], back: Sequence[float],
     return AlongTrack(k, g, (first, last), change, sigma, int(af.size))
 
 
-def along_track(results, center: complex) -> tuple:
+def along_track(results, center: complex) -> Tuple[List[float], List[float]]:
     """Return the ok frames' (front, back) places along the track (m, from ``center``)."""
     ok = [r for r in results if r.ok and r.front is not None and r.back is not None]
     return [(r.front - center).real for r in ok], [(r.back - center).real for r in ok]
