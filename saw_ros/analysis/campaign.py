@@ -14,7 +14,7 @@ import csv
 from dataclasses import asdict, dataclass
 import math
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -71,7 +71,7 @@ def _track_condition(job) -> Tuple[np.ndarray, np.ndarray, int]:
     ok = 0
     for k, tk in enumerate(times):
         res = tracker.update(renderer.render(pose_at(tk), (), pose_at, tk), tk)
-        if res.ok:
+        if res.ok and res.position is not None:
             xs[k] = res.position.real
             ok += 1
     return times, xs, ok
@@ -158,7 +158,7 @@ def _mean(values) -> float:
     return float(np.mean(values)) if values else float('nan')
 
 
-def summarise(results: List[ConditionResult]) -> Dict[str, object]:
+def summarise(results: List[ConditionResult]) -> Dict[str, Any]:
     """
     Return the means, fits and counts of a campaign.
 
@@ -224,7 +224,7 @@ def notes_markdown(results: List[ConditionResult]) -> List[str]:
     return lines + [f'- {r.slope_deg:g} deg, {r.voltage:g} V: {r.note}' for r in noted]
 
 
-def markdown(results: List[ConditionResult], summary: Dict[str, object]) -> str:
+def markdown(results: List[ConditionResult], summary: Dict[str, Any]) -> str:
     lines = ['# Validation campaign: simulation against tracking (paper Section 6)', '',
              'Every condition ran through the physics core, the virtual 60 fps camera and the '
              'two-pink-marker tracker. AR = mean speed / v_theory over whole wave cycles after '

@@ -295,5 +295,10 @@ def find_reference(points: List[ReferencePoint], slope_deg: float,
 
 def reference_error(point: ReferencePoint, v_sim: float, vth: float) -> float:
     """Relative error of the simulation against a measurement, on AR (or speed: the same)."""
-    measured_ar = point.advance_ratio if point.advance_ratio is not None else point.speed / vth
+    if point.advance_ratio is not None:
+        measured_ar = point.advance_ratio
+    elif point.speed is not None:
+        measured_ar = point.speed / vth
+    else:
+        raise ValueError(f'reference point {point.source}: neither a speed nor an AR')
     return abs(v_sim / vth - measured_ar) / abs(measured_ar)

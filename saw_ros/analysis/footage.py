@@ -72,8 +72,10 @@ class FootageRun:
         values = {'conditions.slope': math.radians(self.slope_deg)}
         if self.voltage is not None:
             values['motor.voltage'] = self.voltage
-        else:
+        elif self.frequency is not None:
             values.update({'motor.voltage': 0.0, 'conditions.frequency': self.frequency})
+        else:       # read_manifest refuses such a row: one of the two is required
+            raise ManifestError(f'{self.video}: neither voltage_V nor frequency_hz')
         return base.with_values(values)
 
 
@@ -182,7 +184,7 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
     if run.px_per_m is not None:
         scale, source = run.px_per_m, 'px_per_m'
     else:
-        found = measure_scale(run.video, camera_kw, config, run.marker_spacing, run.fps)
+        found = measure_scale(run.video, camera_kw, config, config.marker_spacing, run.fps)
         if found is None:
             raise ManifestError(f'{run.video}: the marker spacing could not be measured (no '
                                 f'frame with both markers told apart): give px_per_m')
@@ -391,6 +393,8 @@ def make_clip(scenario: Scenario, path, start: float = 1.2, duration: float = 2.
     from saw_ros.vision.video import VideoWriter
     run = simulate_run(scenario, start + duration + 0.1)
     # (a motor turns the helix below its no-load frequency: the clip's cycles are the helix's)
+    if run.trajectory is None:
+        raise RuntimeError('simulate_run kept no trajectory')
     frequency = run_frequency(run.trajectory)
     n = int(round(duration * fps))
     times = start + np.arange(n) / fps

@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 import json
 import math
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Sequence, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
@@ -299,6 +299,8 @@ def motor_bandwidth(base: Scenario, harmonics: Sequence[int], depth: float = 0.2
                        measure, record=True) for i in range(len(harmonics))]
     out = {}
     for k, outcome in zip(harmonics, single):
+        if outcome.omega is None:
+            raise RuntimeError('evaluate(record=True) kept no helix speed')
         omega = outcome.omega[:, 0]
         frequencies, power = spectrum(omega, base.integration.dt)
         target = k * outcome.helix_hz[0]
@@ -345,7 +347,7 @@ def across_slopes(result: ShapeResult, base: Scenario,
 
 
 def write_report(result: ShapeResult, base: Scenario, out_dir: Path,
-                 slopes_deg: Sequence[float] = SLOPES_DEG) -> Dict[str, object]:
+                 slopes_deg: Sequence[float] = SLOPES_DEG) -> Dict[str, Any]:
     """Spectra, profile, slopes and the motor's bandwidth: PNGs, result.json and report.md."""
     out_dir.mkdir(parents=True, exist_ok=True)
     plt = _plt()
@@ -357,8 +359,11 @@ def write_report(result: ShapeResult, base: Scenario, out_dir: Path,
     links_per_wave = base.robot.wavelength / base.robot.link
     shares = []
     per_harmonic = []
+    acceleration = runs.normal_acceleration
+    if acceleration is None:
+        raise RuntimeError('evaluate(record=True) kept no normal acceleration')
     for i in range(2):
-        frequencies, power = spectrum(runs.normal_acceleration[:, i], dt)
+        frequencies, power = spectrum(acceleration[:, i], dt)
         shares.append(band_shares(frequencies, power, runs.helix_hz[i], links_per_wave))
         per_harmonic.append(harmonic_power(frequencies, power, runs.helix_hz[i], HARMONIC_BARS)
                             * runs.vibration[i] ** 2)
@@ -455,7 +460,7 @@ def link_passing_sentence(bandwidth: Dict[str, float], share: float,
             f'profile acts on it directly ({reduction_pct:.0f} % less vibration).')
 
 
-def report_text(summary: Dict[str, object]) -> str:
+def report_text(summary: Dict[str, Any]) -> str:
     """Return the markdown report, every number from ``summary`` (written by write_report)."""
     r = summary['result']
     before, after = summary['band_shares']['constant'], summary['band_shares']['shaped']

@@ -128,6 +128,7 @@ def hold(feedback: str = 'tracking', target: float = TARGET,
             frames += 1
             pose = RobotPose(float(sim.q[0, 0]), float(sim.q[1, 0]), float(sim.q[2, 0]),
                              float(sim.phase[0]))
+            assert renderer is not None and renderer_tracker is not None  # made for 'tracking'
             result = renderer_tracker.update(renderer.render(pose), sim.t)
             ok += result.ok
             if result.velocity_smoothed is None:

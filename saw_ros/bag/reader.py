@@ -21,7 +21,7 @@ import glob
 import io
 import os
 import struct
-from typing import Dict, Iterable, Iterator, List, Optional
+from typing import Callable, Dict, Iterable, Iterator, List, Optional
 import zlib
 
 from mcap.data_stream import ReadDataStream
@@ -126,7 +126,7 @@ class TopicSummary:
     @property
     def rate(self) -> float:
         """Mean message rate in Hz over this topic's own span."""
-        if self.count < 2 or self.first is None or self.last == self.first:
+        if self.count < 2 or self.first is None or self.last is None or self.last == self.first:
             return 0.0
         return (self.count - 1) * 1e9 / (self.last - self.first)
 
@@ -193,7 +193,8 @@ def read_metadata(meta_path: str) -> dict:
                 and isinstance(entry.get('message_count', 0), int)
                 and all(isinstance(meta.get(k, ''), str)
                         for k in ('type', 'serialization_format', 'type_description_hash'))
-                and isinstance(meta.get('offered_qos_profiles') or [], list)):
+                # rosbag2 wrote the QoS as one YAML string up to metadata version 8, a list since
+                and isinstance(meta.get('offered_qos_profiles') or [], (list, str))):
             raise BagReadError(f'{meta_path}: topics_with_message_count entries must be '
                                'mappings with topic_metadata (name, type...) and message_count, '
                                f'not {_one_line(entry)[:200]!r}')
@@ -447,12 +448,13 @@ class BagReader:
         Their summaries' statistics, else metadata.yaml's count, else what was read plus what the
         damage lost (None: unknown).
         """
-        if self._expected and all(n is not None for n in self._expected.values()):
-            return sum(self._expected.values())
+        expected = [n for n in self._expected.values() if n is not None]
+        if self._expected and len(expected) == len(self._expected):
+            return sum(expected)
         if self.metadata and self.complete and isinstance(self.metadata.get('message_count'), int):
             return self.metadata['message_count']
-        lost = [d.messages for d in self.damage]
-        if all(n is not None for n in lost):
+        lost = [d.messages for d in self.damage if d.messages is not None]
+        if len(lost) == len(self.damage):
             return sum(self._read.values()) + sum(lost)
         return None
 
@@ -619,12 +621,13 @@ class BagReader:
     def _on_message_record(self, scan: '_Scan', _at, _opcode, body,
                            wanted) -> Iterator[BagMessage]:
         """Yield a message record found outside chunks (other writers)."""
-        message = self._message(scan, wanted, *_MESSAGE.unpack_from(body),
+        channel_id, sequence, log_time, publish_time = _MESSAGE.unpack_from(body)
+        message = self._message(scan, wanted, channel_id, sequence, log_time, publish_time,
                                 body[_MESSAGE.size:])
         if message is not None:
             yield message
 
-    def _on_message_index(self, scan: '_Scan', _at, _opcode, body, _wanted) -> Iterator:
+    def _on_message_index(self, scan: '_Scan', _at, _opcode, body, _wanted) -> Iterable:
         """Count the messages of a damaged chunk from the message indexes after it."""
         lost = scan.lost
         if lost is not None and len(body) >= 6:
@@ -637,7 +640,7 @@ class BagReader:
                 lost.topics.append(name)
         return ()
 
-    def _on_definition(self, scan: '_Scan', at: int, opcode: int, body, _wanted) -> Iterator:
+    def _on_definition(self, scan: '_Scan', at: int, opcode: int, body, _wanted) -> Iterable:
         """Keep a schema or channel record found outside chunks (other writers)."""
         kind, cls, table = (('schema', Schema, scan.schemas) if opcode == _SCHEMA
                             else ('channel', Channel, scan.channels))
@@ -699,7 +702,7 @@ class BagReader:
         """(BagMessage, ROS-like message object) decoded with mcap_ros2 (no rclpy needed)."""
         from mcap_ros2.decoder import DecoderFactory
         factory = DecoderFactory()
-        decoders = {}
+        decoders: Dict[int, Callable[[bytes], object]] = {}
         numbers: Dict[str, int] = {}
         for m in self.messages(topics):
             number = numbers[m.topic] = numbers.get(m.topic, 0) + 1
@@ -780,18 +783,19 @@ class BagReader:
         last = max(ends) if ends else None
         text = (f'{self.path} is unfinished (no summary: the recorder was killed or the copy is '
                 f'cut short); {read} messages readable')
-        expected = self.metadata.get('message_count') if self.metadata else None
+        meta = self.metadata or {}
+        expected = meta.get('message_count')
         if isinstance(expected, int):
             missing = []
-            for entry in self.metadata.get('topics_with_message_count') or []:
+            for entry in meta.get('topics_with_message_count') or []:
                 name = entry['topic_metadata']['name']
                 got = topics[name].count if name in topics else 0
                 if entry.get('message_count', 0) > got:
                     missing.append(f'{name}: {entry["message_count"] - got}')
             text += (f' of {expected} (metadata.yaml); missing {max(expected - read, 0)}'
                      + (f' ({", ".join(missing)})' if missing else ''))
-            start = (self.metadata.get('starting_time') or {}).get('nanoseconds_since_epoch')
-            length = (self.metadata.get('duration') or {}).get('nanoseconds')
+            start = (meta.get('starting_time') or {}).get('nanoseconds_since_epoch')
+            length = (meta.get('duration') or {}).get('nanoseconds')
             if isinstance(start, int) and isinstance(length, int) and last is not None \
                     and start + length > last:
                 text += (f', log time {stamp(last)} .. {stamp(start + length)} '
@@ -814,7 +818,8 @@ class BagReader:
             'files': [os.path.basename(f) for f in self.files],
             'size': sum(os.path.getsize(f) for f in self.files),
             'storage': 'mcap',
-            'start': start, 'end': end, 'duration': end - start if starts else 0,
+            'start': start, 'end': end,
+            'duration': end - start if start is not None and end is not None else 0,
             'messages': sum(t.count for t in topics.values()),
             'topics': topics,
             'complete': self.complete,

@@ -122,10 +122,11 @@ def _rewrite(path: str, topics: Dict[str, list]):
             if channel is None:
                 schema = 0
                 if m.schema is not None:
-                    schema = schemas.get(m.schema.id)
-                    if schema is None:
-                        schema = schemas[m.schema.id] = writer.register_schema(
+                    known = schemas.get(m.schema.id)
+                    if known is None:
+                        known = schemas[m.schema.id] = writer.register_schema(
                             m.schema.name, m.schema.encoding, m.schema.data)
+                    schema = known
                 channel = channels[m.channel.id] = writer.register_channel(
                     m.topic, m.channel.message_encoding, schema, dict(m.channel.metadata))
                 topics.setdefault(m.topic, [

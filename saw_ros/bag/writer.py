@@ -88,7 +88,7 @@ def bag_metadata(file_name: str, topics, start: Optional[int], end: Optional[int
     count) each; ``start``/``end``: log times of the first and last message (None: no message).
     """
     first = start if start is not None else time.time_ns()
-    duration = (end - start) if start is not None else 0
+    duration = (end - start) if start is not None and end is not None else 0
     count = sum(t[5] for t in topics)
     return {
         'version': 9,
@@ -221,7 +221,8 @@ class BagWriter:
             raise ValueError(f'compression must be zstd or none, not {compression!r}')
         if reorder_window_ns < 0 or max_buffer_bytes < 0:
             raise ValueError('reorder_window_ns and max_buffer_bytes must be >= 0')
-        self._mcap = Writer(self._stream, chunk_size=chunk_size,
+        # (mcap's stub asks for an IO; its Writer calls write and tell only, which we have)
+        self._mcap = Writer(self._stream, chunk_size=chunk_size,  # type: ignore[arg-type]
                             compression=(CompressionType.ZSTD if compression == 'zstd'
                                          else CompressionType.NONE),
                             enable_data_crcs=True)

@@ -13,9 +13,10 @@ import os
 from pathlib import Path
 import sys
 import time
+from typing import List
 
 LOGS_ENV = 'SAW_BENCH_LOGS'
-_announced = []
+_announced: List[Path] = []
 
 
 def logs_root() -> Path:

@@ -24,6 +24,7 @@ import os
 from pathlib import Path
 import random
 import struct
+from typing import Dict, List
 
 import numpy as np
 
@@ -71,7 +72,7 @@ def command_latency(samples: int) -> list:
     # be the simulator's newest step, not a queue behind it.
     executor = make_executor(context)
     executor.add_node(node)
-    raw = {name: [] for name in (topics.CLOCK, topics.JOINT_STATES)}
+    raw: Dict[str, List[bytes]] = {name: [] for name in (topics.CLOCK, topics.JOINT_STATES)}
     for name in raw:
         node.create_subscription(message_class(topics.topic(name).type), name, raw[name].append,
                                  with_depth(profile('stream'), 5000), raw=True)
@@ -81,8 +82,9 @@ def command_latency(samples: int) -> list:
     spin = lambda t: executor.spin_once(timeout_sec=t)  # noqa: E731
     sent = []
     try:
-        if not wait_for(lambda: publisher.get_subscription_count() > 0 and raw[topics.CLOCK]
-                        and raw[topics.JOINT_STATES], 30, spin=spin):
+        if not wait_for(lambda: publisher.get_subscription_count() > 0
+                        and bool(raw[topics.CLOCK]) and bool(raw[topics.JOINT_STATES]), 30,
+                        spin=spin):
             raise RuntimeError(f'the simulator did not start: {sim.output()[-300:]}')
         wait_for(lambda: _stamp(raw[topics.CLOCK][-1]) > 1.0 * NS, 30, spin=spin)
         rng = random.Random(1)

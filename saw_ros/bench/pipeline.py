@@ -35,7 +35,14 @@ figure is the ladder's top, not the graph's),
 ``pipeline_lost_messages`` the messages missing at that factor (0 by definition, or at the lowest
 rung tried when none is sustained), ``pipeline_cpu_share`` each node's CPU (fraction of one core)
 while the simulator stepped at real-time factor 1.0; the same with ``pipeline_images_`` for the
-ladder that records the images. Two shared cores: figures are noisy.
+ladder that records the images. ``pipeline_bridge_``: the first ladder again with the Foxglove
+bridge in the graph and one client (saw_ros.graph.foxglove_client, in this process) subscribed to
+every channel it serves, the client's receiving nothing failing the rung (issue 34's goal: at
+most 10 % below ``pipeline_max_realtime_factor``); ``bridge_command_latency_ms`` (median) and
+``_max``: round trips of a command sent by that client every 0.1 s at the 1.0 rung, client ->
+bridge -> /saw/motor_controller/commands -> the bridge's own subscription -> client (an upper
+bound of the way from a Foxglove panel to the simulator's input; the command is the helix
+frequency the run has anyway). Two shared cores: figures are noisy.
 Each rung's folder (node logs, comparison.json; the bag and video only when the rung failed) is
 kept in ``log_dir('pipeline')/rtf_<factor>/``; a graph that does not finish in time, or
 artefacts that cannot be read, make a failed rung, never a crashed bench.
@@ -58,7 +65,10 @@ from saw_ros.vision.camera import FPS     # the camera node's default, which the
 KEYS = ('pipeline_max_realtime_factor', 'pipeline_lost_messages', 'pipeline_cpu_share',
         'pipeline_max_realtime_factor_is_lower_bound',
         'pipeline_images_max_realtime_factor', 'pipeline_images_lost_messages',
-        'pipeline_images_cpu_share', 'pipeline_images_max_realtime_factor_is_lower_bound')
+        'pipeline_images_cpu_share', 'pipeline_images_max_realtime_factor_is_lower_bound',
+        'pipeline_bridge_max_realtime_factor', 'pipeline_bridge_lost_messages',
+        'pipeline_bridge_cpu_share', 'pipeline_bridge_max_realtime_factor_is_lower_bound',
+        'bridge_command_latency_ms', 'bridge_command_latency_ms_max')
 IMAGE_TOPICS = (topics.IMAGE, topics.IMAGE_COMPRESSED)
 DURATION = 6.0          # s of simulated time per rung (steady state is reached near 2-3 s)
 QUICK_DURATION = 5.0
@@ -67,7 +77,8 @@ QUICK_DURATION = 5.0
 UP = (1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0, 20.0)
 DOWN = (0.9, 0.8, 0.7, 0.6, 0.5, 0.25)
 MAX_LAG = 1.0           # s of wall time the last tracking status may come after the last step
-NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder')
+NODES = ('simulator', 'camera', 'vision', 'comparison', 'recorder', 'foxglove_bridge')
+COMMAND_PERIOD = 0.1    # s between two commands sent through the bridge (their round trips)
 
 
 # -- CPU of the node processes --------------------------------------------------------------
@@ -124,6 +135,92 @@ class CpuSampler:
                         return c0 + (c1 - c0) * (t - t0) / (t1 - t0) if t1 > t0 else c1
                 return pts[0][1] if t < pts[0][0] else pts[-1][1]
             out[node] = round((at(end) - at(start)) / (end - start), 3)
+        return out
+
+
+# -- the Foxglove bridge and one client subscribed to everything -------------------------------
+def free_port() -> int:
+    """Return a TCP port free on 127.0.0.1 now (the bridge binds it a moment later)."""
+    import socket
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+class BridgeClient:
+    """
+    A Foxglove client of the graph's bridge, on a thread: subscribes to every channel.
+
+    Once subscribed, it also sends a command every COMMAND_PERIOD (the helix frequency the
+    graph runs at anyway, so that the run is unchanged) and times each one's round trip:
+    client -> bridge -> /saw/motor_controller/commands -> the bridge's subscription to it ->
+    client, an upper bound of the one-way latency from a Foxglove panel to the simulator's input.
+    """
+
+    def __init__(self, port: int, timeout: float):
+        import threading
+        self.url = f'ws://127.0.0.1:{port}'
+        self.timeout = timeout
+        self.client = None
+        self.round_trips_ms: List[float] = []
+        self.problem = ''
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        from websockets.exceptions import ConnectionClosed
+        try:
+            self._watch()
+        except ConnectionClosed:
+            pass        # the graph ended and its bridge with it
+
+    def _watch(self) -> None:
+        from rclpy.serialization import serialize_message
+        from saw_ros.core.params import Scenario
+        from saw_ros.graph.foxglove_client import connect_when_up
+        from saw_ros.graph.process import wait_for
+        from saw_ros.ros.qos import message_class
+        served = {t.name for t in topics.TOPICS} - {topics.IMAGE}
+        client = connect_when_up(self.url, self.timeout, keep=[topics.MOTOR_COMMANDS])
+        if client is None:
+            self.problem = f'no Foxglove bridge at {self.url} within {self.timeout:g} s'
+            return
+        self.client = client
+        if not wait_for(lambda: served <= set(client.channels) or self._stop.is_set(), 30):
+            self.problem = f'the bridge advertised {len(client.channels)} of {len(served)} topics'
+            return
+        client.subscribe(sorted(served))
+        entry = topics.topic(topics.MOTOR_COMMANDS)
+        channel = client.advertise(entry.name, entry.type)
+        command = serialize_message(message_class(entry.type)(
+            data=[Scenario().conditions.frequency]))
+        echoes = client.messages.setdefault(entry.name, [])
+        while not self._stop.wait(COMMAND_PERIOD):
+            seen = len(echoes)
+            sent = time.monotonic()
+            client.publish(channel, command)
+            if wait_for(lambda: len(echoes) > seen or self._stop.is_set(), 5.0, poll=0.0005) \
+                    and len(echoes) > seen:
+                self.round_trips_ms.append((echoes[seen][1] - sent) * 1e3)
+
+    def stop(self) -> dict:
+        """Stop; return what the client received and the commands' round trips."""
+        self._stop.set()
+        self._thread.join(timeout=10.0)
+        out: dict = {}
+        if self.client is not None:
+            out['bridge_client_messages'] = sum(self.client.counts.values())
+            self.client.close()
+            if not self.client.counts.get(topics.CLOCK):
+                self.problem = self.problem or 'the Foxglove client received no /clock'
+        # The first round trips include the bridge's subscription matching (discovery).
+        trips = sorted(self.round_trips_ms[3:])
+        if trips:
+            out['bridge_command_latency_ms'] = round(trips[len(trips) // 2], 2)
+            out['bridge_command_latency_ms_max'] = round(trips[-1], 2)
+        if self.problem:
+            out['bridge_problem'] = self.problem
         return out
 
 
@@ -228,26 +325,41 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
 
 
 def measure(rtf: float, duration: float, work: Path, record_topics: Optional[List[str]] = None,
-            ) -> dict:
-    """One rung: the whole graph at ``rtf``; the loss figures and each node's CPU share."""
+            bridge: bool = False) -> dict:
+    """
+    One rung: the whole graph at ``rtf``; the loss figures and each node's CPU share.
+
+    ``bridge``: with the Foxglove bridge and one client subscribed to everything (BridgeClient);
+    a client that cannot connect or receives nothing makes the rung fail.
+    """
     from saw_ros.interface.config import config_path
     from saw_ros.graph.pipeline import PipelineError, run_pipeline
     out = work / f'rtf_{rtf:g}'
     sampler = CpuSampler()
     start = time.monotonic()
+    port = free_port() if bridge else None
+    watcher = BridgeClient(port, 60.0) if port else None
     try:
         run = run_pipeline(out, duration, rtf, bag_dir=out / 'bag', progress=sampler,
                            timeout=30.0 + 4.0 * duration / rtf, record_topics=record_topics,
-                           reference_file=config_path('reference_paper.csv'))
+                           reference_file=config_path('reference_paper.csv'),
+                           foxglove={'port': port} if port else None)
     except PipelineError as exc:
+        if watcher is not None:
+            watcher.stop()
         return {'rtf': rtf, 'lost': None, 'sustained': False, 'problems': [str(exc)[:300]],
                 'wall_s': round(time.monotonic() - start, 1), 'logs': str(out / 'logs')}
+    bridge_figures = watcher.stop() if watcher is not None else {}
     try:
         result = check(run, duration, rtf)
     except Exception as exc:  # noqa: BLE001  (a bag or log the run left unreadable)
         return {'rtf': rtf, 'lost': None, 'sustained': False, 'logs': str(out / 'logs'),
                 'problems': [f'checking the run failed: {type(exc).__name__}: {exc}'[:300]],
                 'wall_s': round(run.wall_s, 1)}
+    result.update(bridge_figures)
+    if 'bridge_problem' in bridge_figures:
+        result['problems'].append(bridge_figures['bridge_problem'])
+        result['sustained'] = False
     window = result.pop('window')
     if window is not None:
         result['cpu_share'] = sampler.share(*window)
@@ -256,18 +368,20 @@ def measure(rtf: float, duration: float, work: Path, record_topics: Optional[Lis
     return result
 
 
-def ladder(duration: float, work: Path, record_topics: List[str]) -> tuple:
+def ladder(duration: float, work: Path, record_topics: List[str], bridge: bool = False
+           ) -> tuple:
     """
-    Return one ladder's (highest rtf sustained, messages lost there, CPU shares at 1.0, capped).
+    Return a ladder's (highest rtf sustained, lost there, CPU shares at 1.0, capped, 1.0 rung).
 
     ``capped``: the top rung of ``UP`` held, so the highest factor is only a lower bound.
+    ``bridge``: every rung with the Foxglove bridge and a client (``measure``).
     """
     best, lost_best, lowest = 0.0, None, None
     work.mkdir(parents=True, exist_ok=True)
 
     def rung(rtf):
         shutil.rmtree(work / f'rtf_{rtf:g}', ignore_errors=True)   # a reused --logs folder
-        result = measure(rtf, duration, work, record_topics)
+        result = measure(rtf, duration, work, record_topics, bridge)
         if result['sustained']:     # keep the logs; the bag only of failures
             shutil.rmtree(work / f'rtf_{rtf:g}' / 'bag', ignore_errors=True)
         print(f'bench pipeline ({work.name}): {json.dumps(result)}', file=sys.stderr,
@@ -291,7 +405,7 @@ def ladder(duration: float, work: Path, record_topics: List[str]) -> tuple:
                 break
         if best == 0.0:
             lost_best = lowest.get('lost')
-    return best, lost_best, cpu_at_1, best == UP[-1]
+    return best, lost_best, cpu_at_1, best == UP[-1], first
 
 
 def run(quick: bool = False) -> dict:
@@ -300,14 +414,21 @@ def run(quick: bool = False) -> dict:
     duration = QUICK_DURATION if quick else DURATION
     work = log_dir('pipeline')
     no_images = [t for t in RECORDED_TOPICS if t not in IMAGE_TOPICS]
-    best, lost, cpu, capped = ladder(duration, work / 'no_images', no_images)
-    images_best, images_lost, images_cpu, images_capped = ladder(duration, work / 'images',
-                                                                 RECORDED_TOPICS)
+    best, lost, cpu, capped, _ = ladder(duration, work / 'no_images', no_images)
+    images_best, images_lost, images_cpu, images_capped, _ = ladder(duration, work / 'images',
+                                                                    RECORDED_TOPICS)
+    bridge_best, bridge_lost, bridge_cpu, bridge_capped, first = ladder(
+        duration, work / 'bridge', no_images, bridge=True)
+    latency = {k: first.get(k) for k in ('bridge_command_latency_ms',
+                                         'bridge_command_latency_ms_max')}
     return {'pipeline_max_realtime_factor': best, 'pipeline_lost_messages': lost,
             'pipeline_cpu_share': cpu, 'pipeline_max_realtime_factor_is_lower_bound': capped,
             'pipeline_images_max_realtime_factor': images_best,
             'pipeline_images_lost_messages': images_lost, 'pipeline_images_cpu_share': images_cpu,
-            'pipeline_images_max_realtime_factor_is_lower_bound': images_capped}
+            'pipeline_images_max_realtime_factor_is_lower_bound': images_capped,
+            'pipeline_bridge_max_realtime_factor': bridge_best,
+            'pipeline_bridge_lost_messages': bridge_lost, 'pipeline_bridge_cpu_share': bridge_cpu,
+            'pipeline_bridge_max_realtime_factor_is_lower_bound': bridge_capped, **latency}
 
 
 def main(argv: List[str]) -> int:
@@ -320,6 +441,8 @@ def main(argv: List[str]) -> int:
     p.add_argument('--topics', default='', help='recorder topics, comma-separated '
                                                 '(default: all)')
     p.add_argument('--quick', action='store_true')
+    p.add_argument('--bridge', action='store_true',
+                   help='with foxglove_bridge and a client subscribed to everything')
     a = p.parse_args(argv)
     if a.rtf is None:
         print(json.dumps(run(a.quick)))
@@ -328,7 +451,8 @@ def main(argv: List[str]) -> int:
     if a.keep is not None:
         a.keep.mkdir(parents=True, exist_ok=True)
     from saw_ros.bench import log_dir
-    print(json.dumps(measure(a.rtf, a.duration, a.keep or log_dir('pipeline'), record)))
+    print(json.dumps(measure(a.rtf, a.duration, a.keep or log_dir('pipeline'), record,
+                             a.bridge)))
     return 0
 
 

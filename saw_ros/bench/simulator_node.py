@@ -31,6 +31,7 @@ import signal
 import subprocess
 import sys
 import time
+from typing import Any, Dict, Optional
 
 KEYS = ('sim_max_realtime_factor', 'sim_lost_messages', 'sim_max_realtime_factor_is_lower_bound')
 SUBSCRIBER_DEPTH = 1000     # 1 s at 1 kHz: rides out the scheduling hiccups of a shared machine
@@ -178,7 +179,7 @@ def _wait(proc, timeout: float):
         return None
 
 
-def measure(rtf: float, duration: float, log_dir: Path, timeout: float = None,
+def measure(rtf: float, duration: float, log_dir: Path, timeout: Optional[float] = None,
             attempts: int = 3) -> dict:
     """
     One rung: simulator + subscriber processes in a private domain.
@@ -215,7 +216,7 @@ def _rung(rtf: float, duration: float, logs: Path, timeout) -> dict:
     steps = int(round(duration * 1000))
     if timeout is None:
         timeout = duration / rtf * 3 + 30
-    result = {'rtf': rtf, 'domain': int(env['ROS_DOMAIN_ID'])}
+    result: Dict[str, Any] = {'rtf': rtf, 'domain': int(env['ROS_DOMAIN_ID'])}
     # By module name: __name__ is '__main__' when this file runs as `python -m ...`.
     sub = ManagedProcess('subscriber', [sys.executable, '-m', 'saw_ros.bench.simulator_node',
                                         '--subscriber', str(steps), str(timeout)], env, logs)

@@ -50,8 +50,8 @@ def finite_difference_error() -> float:
     loads, at = [1.0, 0.6, 0.3], [0.0, 0.011, 0.025]
     x, w = finite_difference_deflection(loads, at, s.foundation_stiffness, s.bending_stiffness,
                                         s.contact_width, 0.4, 1e-4)
-    exact = sum(deflection(x - c, f, s.foundation_stiffness, s.bending_stiffness,
-                           s.contact_width) for f, c in zip(loads, at))
+    exact = np.sum([deflection(x - c, f, s.foundation_stiffness, s.bending_stiffness,
+                               s.contact_width) for f, c in zip(loads, at)], axis=0)
     return float(100.0 * np.abs(w - exact).max() / exact.max())
 
 

@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         module = importlib.import_module(f'{commands.__name__}.{info.name}')
         name = getattr(module, 'NAME', info.name)
-        p = sub.add_parser(name, help=module.HELP, description=module.__doc__.lstrip('\n'),
+        p = sub.add_parser(name, help=module.HELP, description=(module.__doc__ or '').lstrip('\n'),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_arguments(p)
         p.set_defaults(_run=module.run)

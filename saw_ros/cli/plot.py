@@ -28,8 +28,8 @@ def write_time_plot(path, title: str, positions: Sequence[Series], speeds: Seque
         ax1.plot(t, 100 * np.asarray(x, float), label=label)
     for label, t, v in speeds:
         ax2.plot(t, 100 * np.asarray(v, float), lw=0.7, label=label)
-    for k, (label, v) in enumerate(levels):
-        ax2.axhline(100 * v, color=f'C{k + len(speeds)}', ls='--', lw=1, label=label)
+    for k, (label, level) in enumerate(levels):
+        ax2.axhline(100 * level, color=f'C{k + len(speeds)}', ls='--', lw=1, label=label)
     if window is not None:
         for ax in (ax1, ax2):
             ax.axvspan(*window, color='0.9', label='measuring window' if ax is ax2 else None)

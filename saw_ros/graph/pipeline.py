@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import json
 from pathlib import Path
 import time
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Optional
 
 from saw_ros.graph.process import isolated_ros_env, ManagedProcess, node_command
 from saw_ros.interface import topics
@@ -62,7 +62,7 @@ ALL_TOPICS = [t.name for t in topics.TOPICS]
 
 
 def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
-                    scenario: Optional[Dict[str, object]] = None, record: bool = True,
+                    scenario: Optional[Dict[str, Any]] = None, record: bool = True,
                     camera: Optional[Dict[str, object]] = None,
                     report_path: Optional[Path] = None,
                     reference_file: Optional[Path] = None,
@@ -143,6 +143,11 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     # an mp4 beside the JPEGs cost the live graph real time (saw-ros bag video makes it after).
     node_params = node_parameters(duration, real_time_factor, scenario, record, camera,
                                   report_path, reference_file, controller, foxglove)
+    # The bridge subscribes for its clients, and the simulator starts once every topic has a
+    # subscriber: a client connected before the recorder matched would start the run without
+    # it (the bench's recorder lost the first 2.4 s). With a recorder, the bridge joins once the
+    # simulator has started.
+    bridge_params = node_params.pop('foxglove_bridge', None)
     nodes: List[ManagedProcess] = []
     codes: Dict[str, int] = {}
     start = time.monotonic()
@@ -172,6 +177,9 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             probe = ManagedProcess('ready', probe_command, env, logs)
         started = {name: launch(name, **values) for name, values in node_params.items()}
         simulator, comparison = started['simulator'], started['comparison']
+        if bridge_params is not None and not record:
+            launch('foxglove_bridge', **bridge_params)
+            bridge_params = None
         if record:
             # With a recorder the simulator starts stepping once the recorder has matched its
             # topics (/saw/twist & co. have no other subscriber). So the recorder comes last:
@@ -181,7 +189,7 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             # the camera's and tracker's topics (published from the first frame on) in the same
             # discovery pass as the simulator's. (Not ready within MATCH_TIMEOUT: the probe
             # exits 1 and the run goes on.)
-            while probe.returncode is None:
+            while probe is not None and probe.returncode is None:
                 check_alive()
                 time.sleep(0.05)
             if bag_dir is None:
@@ -194,6 +202,9 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
         deadline = time.monotonic() + limit
         while simulator.returncode is None or comparison.returncode is None:
             check_alive()
+            if bridge_params is not None and 'subscribers present' in simulator.output():
+                launch('foxglove_bridge', **bridge_params)
+                bridge_params = None
             if time.monotonic() > deadline:
                 raise PipelineError(f'the run did not finish within {limit:.0f} s; see {logs}')
             if progress is not None:
@@ -206,5 +217,6 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
         for p in sorted(nodes, key=lambda p: p.name == 'recorder'):
             codes[p.name] = p.stop(timeout=10.0)
     comparison_values = json.loads(report_path.read_text()) if report_path.exists() else {}
-    return PipelineRun(out_dir, Path(bag_dir) if record else None, comparison_values, codes,
+    return PipelineRun(out_dir, Path(bag_dir) if record and bag_dir is not None else None,
+                       comparison_values, codes,
                        time.monotonic() - start, {p.name: p.log_path for p in nodes})

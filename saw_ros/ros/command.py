@@ -100,7 +100,7 @@ class CommandInput:
 
     def check_timeout(self) -> None:
         """Return the drive to its parameter once commands stopped for ``timeout`` (sim time)."""
-        if not self.active or self.timeout <= 0.0:
+        if not self.active or self.last_step is None or self.timeout <= 0.0:
             return
         if (self.sim.steps - self.last_step) * self.sim.dt < self.timeout:
             return

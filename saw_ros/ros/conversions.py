@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import Optional, Sequence, Tuple
+from typing import Any, Mapping, Optional, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TwistStamped
@@ -34,9 +34,10 @@ _ROS_TYPE = {'<f4': PointField.FLOAT32, '<u2': PointField.UINT16, 'u1': PointFie
 _NUMPY_TYPE = {PointField.INT8: 'i1', PointField.UINT8: 'u1', PointField.INT16: '<i2',
                PointField.UINT16: '<u2', PointField.INT32: '<i4', PointField.UINT32: '<u4',
                PointField.FLOAT32: '<f4', PointField.FLOAT64: '<f8'}
-CONTACT_FIELDS = [PointField(name=name, offset=CONTACT_DTYPE.fields[name][1],
-                             datatype=_ROS_TYPE[CONTACT_DTYPE.fields[name][0].str], count=1)
-                  for name in CONTACT_DTYPE.names]
+_CONTACT_LAYOUT: Mapping[str, Any] = CONTACT_DTYPE.fields or {}     # (structured: never None)
+CONTACT_FIELDS = [PointField(name=name, offset=_CONTACT_LAYOUT[name][1],
+                             datatype=_ROS_TYPE[_CONTACT_LAYOUT[name][0].str], count=1)
+                  for name in CONTACT_DTYPE.names or ()]
 BOTTOM, TOP = 0, 1
 
 

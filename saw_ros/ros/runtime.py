@@ -19,7 +19,7 @@ import re
 import signal
 import sys
 import time
-from typing import Callable, Iterable, List, Optional
+from typing import Any, Callable, Iterable, List, Optional
 
 
 # s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.
@@ -153,8 +153,8 @@ def _context_gone(exc: BaseException, node) -> bool:
     return not context.ok()
 
 
-def run_node(make_node: Callable[[], 'object'], args=None,
-             spin: Optional[Callable[[object], None]] = None, events: bool = False,
+def run_node(make_node: Callable[[], Any], args=None,
+             spin: Optional[Callable[[Any], None]] = None, events: bool = False,
              name: str = 'saw_ros', parameters: Optional[Callable[[], Iterable]] = None) -> int:
     """
     Build and spin a node until Ctrl-C, SIGTERM, shutdown or NodeFailure; return exit code.
@@ -346,10 +346,10 @@ def help_text(name: str, parameters: Optional[Callable[[], Iterable]],
     """
     import textwrap
     from saw_ros.core.params import range_text
-    doc = (doc or '').replace('``', '').strip().splitlines()
+    summary = (doc or '').replace('``', '').strip().splitlines()
     lines = [f'usage: {name} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE]]', '']
-    if doc:
-        lines += [doc[0], '']
+    if summary:
+        lines += [summary[0], '']
     entries = list(parameters()) if parameters is not None else []
     lines.append('parameters (name: type [unit] in allowed range, default):' if entries
                  else "parameters: see the node's documentation")

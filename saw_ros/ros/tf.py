@@ -9,7 +9,7 @@ latched (reliable, transient local, depth 1, as tf2_ros' StaticTransformBroadcas
 from __future__ import annotations
 
 import struct
-from typing import Iterable, Sequence, Tuple
+from typing import Any, Iterable, Sequence, Tuple
 
 from geometry_msgs.msg import TransformStamped
 from saw_ros.interface import frames, topics
@@ -45,7 +45,7 @@ def publisher(node, static: bool = False):
     return node.create_publisher(TFMessage, name, publisher_profile(topics.topic(name).qos))
 
 
-def message(transforms: Iterable[TransformStamped]) -> 'TFMessage':
+def message(transforms: Iterable[TransformStamped]) -> Any:     # a TFMessage
     return TFMessage(transforms=list(transforms))
 
 

@@ -23,7 +23,8 @@ def test_pipeline_ladder_finds_the_limit_or_says_it_is_a_lower_bound(
     from saw_ros.bench import pipeline
     calls = []
     monkeypatch.setattr(pipeline, 'measure', _sustains_up_to(limit, calls))
-    best, lost, cpu, capped = pipeline.ladder(1.0, tmp_path, [])
+    best, lost, cpu, capped, first = pipeline.ladder(1.0, tmp_path, [])
+    assert first['sustained'] == (limit >= 1.0)
     held = [r for r in pipeline.UP + pipeline.DOWN if r <= limit]
     assert best == max(held) and lost == 0 and cpu == {'simulator': 0.5}
     assert capped == (limit >= pipeline.UP[-1])

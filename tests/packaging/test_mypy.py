@@ -14,19 +14,11 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 STRICT_LAYERS = ('core', 'interface')
-# Modules that do not pass mypy's default checks yet.
+# Modules that do not pass mypy's default checks yet: the tracker's, being split (issue 33 left
+# them to that work).
 NOT_YET_CHECKED = {
-    'analysis/campaign.py', 'analysis/compare.py', 'analysis/figures/__init__.py',
-    'analysis/figures/claims.py', 'analysis/figures/markers_view.py', 'analysis/figures/plots.py',
-    'analysis/footage.py', 'analysis/shape_drive.py', 'analysis/speed_hold.py', 'bag/reader.py',
-    'bag/reindex.py', 'bag/writer.py', 'bench/__init__.py', 'bench/drive.py', 'bench/loadgen.py',
-    'bench/simulator_node.py', 'bench/walls.py', 'cli/commands/bag.py', 'cli/commands/render.py',
-    'cli/commands/shape_drive.py', 'cli/main.py', 'cli/plot.py', 'graph/pipeline.py',
-    'ros/command.py', 'ros/conversions.py', 'ros/nodes/camera.py', 'ros/nodes/player.py',
-    'ros/nodes/recorder.py', 'ros/nodes/simulator.py', 'ros/nodes/video_source.py',
-    'ros/nodes/vision.py', 'ros/params.py', 'ros/runtime.py', 'ros/tf.py', 'vision/egomotion.py',
-    'vision/footage.py', 'vision/frames.py', 'vision/scene.py', 'vision/tracker.py',
-    'vision/video.py',
+    'vision/egomotion.py', 'vision/footage.py', 'vision/frames.py', 'vision/scene.py',
+    'vision/tracker.py', 'vision/video.py',
 }
 
 

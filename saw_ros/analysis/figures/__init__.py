@@ -86,7 +86,8 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
 
     if calibrated == 'shipped':
         calibrated = calibrated_file()
-    cal_base = load_scenario(Path(calibrated)) if calibrated is not None else None
+    cal_path = Path(calibrated) if calibrated is not None else None
+    cal_base = load_scenario(cal_path) if cal_path is not None else None
 
     def on_total_both(n):
         on_total(n * (2 if cal_base is not None else 1))   # both parameter sets, one bar
@@ -94,12 +95,12 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
     update = bar.update if bar is not None else None
     data = sweeps.compute(figures, quick, progress=update, on_total=on_total_both, pool=pool)
     cal = None
-    if cal_base is not None:
+    if cal_base is not None and cal_path is not None:
         t0 = time.perf_counter()
         cal_data = sweeps.compute(figures, quick, progress=update, pool=pool, base=cal_base)
         from saw_ros.analysis.calibrate import trained_claims_of
         defaults = Scenario().flat()
-        cal = Calibrated(Path(calibrated), {k: v for k, v in cal_base.flat().items()
+        cal = Calibrated(cal_path, {k: v for k, v in cal_base.flat().items()
                                             if v != defaults[k]},
                          trained_claims_of(calibrated), cal_data, claims_mod.evaluate(cal_data))
         data.timings['calibrated_s'] = time.perf_counter() - t0

@@ -60,25 +60,31 @@ def _drop(values):
     return values[0] - values[-1]
 
 
+def _needed_above_deg(external_force: float, mu: float) -> float:
+    """The slope (deg) above which the top surface must press; inf when never within 90 deg."""
+    a = top_surface_needed_above(external_force, mu)
+    return math.inf if a is None else math.degrees(a)
+
+
 def statics_claims() -> List[Claim]:
     out = []
-    a = math.degrees(top_surface_needed_above(0.0, 0.4))
+    a = _needed_above_deg(0.0, 0.4)
     out.append(Claim('S1', 'Sec. 3, Fig. 4 A', 'case A (F_ext 0, mu 0.4): the top surface is '
                      'needed above 22 deg', '22 deg', f'{a:.2f} deg', '+-1 deg', abs(a - 22) <= 1))
     b, t, tot = minimal_normal_forces(math.pi / 2, 0.0, 0.4)
-    ok = abs(tot - 2.5) < 1e-9 and abs(b - 1.25) < 1e-9 and abs(t - 1.25) < 1e-9
+    ok = bool(abs(tot - 2.5) < 1e-9 and abs(b - 1.25) < 1e-9 and abs(t - 1.25) < 1e-9)
     out.append(Claim('S2', 'Sec. 3, Fig. 4 A', 'case A at 90 deg: total 2.5 m g, 1.25 m g each '
                      'side', '2.5 / 1.25 / 1.25 m g', f'{tot:.3f} / {b:.3f} / {t:.3f} m g',
                      'exact (1e-9)', ok))
-    thr = top_surface_needed_above(0.5, 0.4)
+    thr = _needed_above_deg(0.5, 0.4)
     out.append(Claim('S3', 'Sec. 3, Fig. 4 B', 'case B (F_ext 0.5 m g, mu 0.4): the top surface '
-                     'is needed at every slope', 'from 0 deg', f'from {math.degrees(thr):.2f} deg',
+                     'is needed at every slope', 'from 0 deg', f'from {thr:.2f} deg',
                      'exact', thr == 0.0))
     b, t, _ = minimal_normal_forces(math.pi / 2, 0.5, 0.4)
     out.append(Claim('S4', 'Sec. 3, Fig. 4 B', 'case B at 90 deg: bottom and top forces equal, '
                      '1.875 m g each', '1.875 / 1.875 m g', f'{b:.3f} / {t:.3f} m g',
-                     'exact (1e-9)', abs(b - 1.875) < 1e-9 and abs(t - 1.875) < 1e-9))
-    c = math.degrees(top_surface_needed_above(0.5, 0.8))
+                     'exact (1e-9)', bool(abs(b - 1.875) < 1e-9 and abs(t - 1.875) < 1e-9)))
+    c = _needed_above_deg(0.5, 0.8)
     out.append(Claim('S5', 'Sec. 3, Fig. 4 C', 'case C (F_ext 0.5 m g, mu 0.8): no top surface '
                      'needed up to 15 deg', '15 deg', f'{c:.2f} deg', '+-1 deg', abs(c - 15) <= 1,
                      note='the paper truncates 15.68 deg to "15"'))

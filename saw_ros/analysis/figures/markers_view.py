@@ -126,12 +126,16 @@ def _viewer_run(seconds: float = VIEW_SECONDS):
         if res.velocity_smoothed is not None:
             tracked.append((t, res.velocity_smoothed.real))
     traj = run.trajectory
+    if res is None or traj is None:
+        raise RuntimeError(f'the {seconds:g} s run gave no frame to show')
     _, pose, phase, points = snapshot(t)           # the ground truth at the last frame
     shapes = scene_markers.scene(scenario.robot, gap, pose, phase, points)
     xyz = (lambda p: None if p is None else (p.real, p.imag, 0.0))  # noqa: E731
+    at = res.position
     shapes += scene_markers.tracking(xyz(res.front), xyz(res.back),
-                                     (res.position.real, res.position.imag, res.pitch)
-                                     if res.ok else None)
+                                     (at.real, at.imag, res.pitch)
+                                     if res.ok and at is not None and res.pitch is not None
+                                     else None)
     vth = v_theory(scenario.robot, scenario.frequency)
     half = traj.t >= seconds - 1.0 / scenario.frequency          # the last whole cycle
     v_sim = float(np.polyfit(traj.t[half], traj.q[half, 0, 0], 1)[0])

@@ -77,8 +77,15 @@ def figure4(data: Data, out: Path) -> List[Path]:
     return [out / 'figure4.csv', out / 'figure4.png']
 
 
+def _timeseries(data: Data) -> dict:
+    """The time series of Figures 7 and 8; a ValueError saying so when it was not computed."""
+    if data.timeseries is None:
+        raise ValueError('Figures 7 and 8 need the time series, which was not computed')
+    return data.timeseries
+
+
 def figure7(data: Data, out: Path) -> List[Path]:
-    ts = data.timeseries
+    ts = _timeseries(data)
     t, q = ts['t'], ts['q']
     keep = t <= 2.5 + 1e-9
     cols = [('x_cm', q[:, 0] * 100), ('y_cm', q[:, 1] * 100), ('pitch_deg', np.degrees(q[:, 2])),
@@ -108,7 +115,7 @@ def figure7(data: Data, out: Path) -> List[Path]:
 
 
 def figure8(data: Data, out: Path) -> List[Path]:
-    ts = data.timeseries
+    ts = _timeseries(data)
     tc, idx = ts['cci_t'], ts['cci']
     keep = tc <= 2.0 + 1e-9
     names = ('vx', 'vy', 'w')

@@ -7,6 +7,7 @@ then:    saw-ros track run.mp4 --px-per-m 1200 --slope-deg 10
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 from saw_ros.cli.checks import number, output_file, spec_number, VIDEO_SUFFIXES
 from saw_ros.cli.errors import UserError
@@ -20,7 +21,7 @@ from saw_ros.vision.video import VideoError, VideoWriter
 HELP = 'simulate a run and render it to an .mp4 (the virtual camera, offline)'
 
 
-def spec_option(p, cls, name: str, flag: str = None) -> None:
+def spec_option(p, cls, name: str, flag: Optional[str] = None) -> None:
     """
     Return a --flag for dataclass field ``cls.name`` with its default.
 

@@ -15,6 +15,7 @@ For example:
   saw-ros shape-drive --voltage 5 --set surface.tangential_stiffness=600 --out out/soft
   saw-ros shape-drive --out docs/shape_drive  # the committed report
 """
+import contextlib
 from pathlib import Path
 
 from saw_ros.analysis import shape_drive
@@ -65,7 +66,7 @@ def run(args) -> int:
             bar.set_postfix_str(f'vibration x {best:.3f}')
             bar.update(1)
 
-    with pool_from_args(args) as pool:
+    with contextlib.closing(pool_from_args(args)) as pool:
         result = shape_drive.optimise(base, pool, args.generations, args.population,
                                       seed=args.seed, progress=progress)
     if bar is not None:

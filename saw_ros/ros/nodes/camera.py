@@ -27,7 +27,7 @@ import queue
 import sys
 import threading
 import time
-from typing import Tuple
+from typing import Optional, Tuple
 
 from geometry_msgs.msg import PoseStamped
 import numpy as np
@@ -186,7 +186,7 @@ class CameraNode(Node):
         self._phases = StampedSeries(int(KEEP * NS_PER_S))      # (helix phase,)
         self._walls = StampedShapes(int(KEEP * NS_PER_S), int(WALLS_STALE * NS_PER_S))
         self._walls_refused = False    # the last /saw/walls cloud was refused (warned)
-        self._next = None          # index of the next frame
+        self._next: Optional[int] = None          # index of the next frame
         self.frames = 0
         self.received = {'poses': 0, 'joint_states': 0, 'walls': 0}
         self.busy = {'render': 0.0, 'publish': 0.0, 'jpeg': 0.0, 'video': 0.0}  # wall s/stage
@@ -198,8 +198,8 @@ class CameraNode(Node):
         # output thread does both, in frame order, so that the executor thread keeps taking
         # the 1 kHz inputs (its queues hold 200 ms) and rendering. OpenCV releases the GIL.
         self._frames_out: 'queue.Queue' = queue.Queue(maxsize=OUTPUT_QUEUE)
-        self._thread = None
-        self._output_error = None
+        self._thread: Optional[threading.Thread] = None
+        self._output_error: Optional[Exception] = None
         # Images go out pre-encoded (one copy of the pixels instead of three); the 1 kHz inputs
         # come in raw and only the fields used are read (a camera uses 60 of 2000 messages/s).
         self._image_cdr = cdr.ImageCdr(camera.width, camera.height, 'bgr8', camera.width * 3,
@@ -222,7 +222,8 @@ class CameraNode(Node):
         # the plane of motion is the same as moving the camera (see _follow).
         self._pub_tf_static = tf.publisher(self, static=True)
         self._pub_tf_static.publish(tf.message([tf.camera_transform(camera, self.frame_id)]))
-        self._info_source = self._info_serialized = None
+        self._info_source: Optional[CameraInfo] = None
+        self._info_serialized = b''
         self._inputs = (
             self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
                                      raw=True),
@@ -239,12 +240,12 @@ class CameraNode(Node):
         # The robot and gap to draw are the simulator's (saw_ros.ros.simulator_parameters).
         self.simulator_parameters = SimulatorParameters(self, p['simulator_node'],
                                                         self.params.names, self._draw_simulators)
-        self._matched_at = None
+        self._matched_at: Optional[float] = None
         # (A steady clock: with use_sim_time the node's clock stands still until /clock runs.)
         self._match_timer = self.create_timer(0.05, self._report_matched,
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    def _camera_info(self, cam: CameraModel = None) -> CameraInfo:
+    def _camera_info(self, cam: Optional[CameraModel] = None) -> CameraInfo:
         cam = cam or self.camera
         info = CameraInfo()
         info.header.frame_id = self.frame_id
@@ -434,7 +435,7 @@ class CameraNode(Node):
             frame = np.ascontiguousarray(frame)
             if self._pub_image is not None and self._pub_image.get_subscription_count():
                 self._pub_image.publish(self._image_cdr(frame, t_ns))
-            if self._pub_compressed is not None and \
+            if self._pub_compressed is not None and self.jpeg_quality is not None and \
                     self._pub_compressed.get_subscription_count():
                 # Here, in the output thread: OpenCV encodes without the GIL.
                 t = time.perf_counter()

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import threading
 import time
+from typing import Optional
 
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -189,9 +190,8 @@ class Player(Node):
     def _play_once(self, rate: float, offset_ns: int) -> None:
         """Play the bag once, from ``offset_ns`` after its first message."""
         clock_period = int(1e9 / self.p['clock_rate']) if self.clock_from_log else None
-        next_clock = None
-        start_wall = None
-        start_bag = None
+        next_clock = start_bag = 0         # (set with start_wall, at the first message played)
+        start_wall: Optional[float] = None
         first = None
         for m in self.reader.messages(list(self.publishers_by_topic)):
             if first is None:

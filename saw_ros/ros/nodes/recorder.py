@@ -41,7 +41,7 @@ import queue
 import sys
 import threading
 import time
-from typing import Dict, List
+from typing import Dict, List, Optional
 
 import rclpy
 from rclpy.context import Context
@@ -268,7 +268,7 @@ class Recorder(Node):
             raise NodeFailure(f'refusing to record: {exc}') from None
         self._depth = int(self.get_parameter('queue_depth').value)
         self._queue: 'queue.SimpleQueue' = queue.SimpleQueue()
-        self._subs: Dict[str, object] = {}
+        self._subs: Dict[str, Optional[dict]] = {}
         self._unmatched: Dict[str, tuple] = {}   # topic: (type, subscribed at), not matched yet
         self.received = 0
         self.losses = LossCounter()     # fed by the writer thread

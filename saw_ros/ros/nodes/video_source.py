@@ -118,6 +118,8 @@ class FrameSource:
                 raise VideoError(f'cannot read frame image {self._files[self._index]}')
             self._index += 1
             return frame
+        if self._cap is None:          # closed: nothing more to read
+            return None
         ok, frame = self._cap.read()
         return frame if ok else None
 
@@ -137,7 +139,7 @@ class FrameSource:
     def rewind(self) -> None:
         if self._files is not None:
             self._index = 0
-        else:
+        elif self._cap is not None:
             self._cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
 
     def close(self) -> None:

@@ -261,9 +261,10 @@ class VisionNode(Node):
                 self._pub_steady.publish(conv.twist_cdr(float(res.steady_speed), 0.0, 0.0,
                                                         t_ns))
         self._pub_status.publish(self._status(res, t_ns))
+        front, back = ((None if p is None else (p.real, p.imag, 0.0))
+                       for p in (res.front, res.back))
         self._pub_markers.publish(markers.marker_array_cdr(scene_markers.tracking(
-            *((None if p is None else (p.real, p.imag, 0.0)) for p in (res.front, res.back)),
-            (res.position.real, res.position.imag, res.pitch)
+            front, back, (res.position.real, res.position.imag, res.pitch)
             if res.status is TrackStatus.OK else None), t_ns))
 
     def _status(self, res, t_ns: int) -> DiagnosticArray:
