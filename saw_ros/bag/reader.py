@@ -131,14 +131,45 @@ class TopicSummary:
         return (self.count - 1) * 1e9 / (self.last - self.first)
 
 
+# rosbag2 before Jazzy (metadata versions up to 8) wrote the policies as rmw's enum numbers; Jazzy
+# and our writer write their names. The player reads names.
+_POLICY_NAMES = {'history': {0: 'system_default', 1: 'keep_last', 2: 'keep_all', 3: 'unknown'},
+                 'reliability': {0: 'system_default', 1: 'reliable', 2: 'best_effort',
+                                 3: 'unknown', 4: 'best_available'},
+                 'durability': {0: 'system_default', 1: 'transient_local', 2: 'volatile',
+                                3: 'unknown', 4: 'best_available'},
+                 'liveliness': {0: 'system_default', 1: 'automatic', 3: 'manual_by_topic',
+                                4: 'unknown', 5: 'best_available'}}
+
+
+def qos_profiles(value) -> List[dict]:
+    """
+    Return offered QoS profiles as a list of mappings with policy names.
+
+    ``value`` as rosbag2 keeps them: YAML text (a channel's metadata, and metadata.yaml up to
+    version 8) or a list (metadata.yaml since version 9); [] if it is neither.
+    """
+    if isinstance(value, str):
+        try:
+            value = yaml.safe_load(value) if value else []
+        except yaml.YAMLError:
+            return []
+    if not isinstance(value, list):
+        return []
+    profiles = []
+    for profile in value:
+        if isinstance(profile, dict):
+            profile = dict(profile)
+            for policy, names in _POLICY_NAMES.items():
+                if isinstance(profile.get(policy), int):
+                    profile[policy] = names.get(profile[policy], 'unknown')
+            profiles.append(profile)
+    return profiles
+
+
 def channel_qos(channel: Channel) -> List[dict]:
     """Return the offered QoS profiles a channel's metadata holds (rosbag2's YAML text)."""
-    text = channel.metadata.get('offered_qos_profiles', '')
-    try:
-        profiles = yaml.safe_load(text) if text else []
-    except yaml.YAMLError:
-        return []
-    return profiles if isinstance(profiles, list) else []
+    return qos_profiles(channel.metadata.get('offered_qos_profiles', ''))
 
 
 def _one_line(text) -> str:
@@ -193,7 +224,7 @@ def read_metadata(meta_path: str) -> dict:
                 and isinstance(entry.get('message_count', 0), int)
                 and all(isinstance(meta.get(k, ''), str)
                         for k in ('type', 'serialization_format', 'type_description_hash'))
-                # rosbag2 wrote the QoS as one YAML string up to metadata version 8, a list since
+                # rosbag2 wrote the QoS as YAML text up to metadata version 8, as a list from 9
                 and isinstance(meta.get('offered_qos_profiles') or [], (list, str))):
             raise BagReadError(f'{meta_path}: topics_with_message_count entries must be '
                                'mappings with topic_metadata (name, type...) and message_count, '
@@ -761,7 +792,7 @@ class BagReader:
             if meta.get('name') and meta['name'] not in out:
                 out[meta['name']] = TopicSummary(
                     meta['name'], meta.get('type', ''), meta.get('serialization_format', ''),
-                    offered_qos_profiles=meta.get('offered_qos_profiles') or [],
+                    offered_qos_profiles=qos_profiles(meta.get('offered_qos_profiles')),
                     type_hash=meta.get('type_description_hash', ''))
         self._topics = out
         return out

@@ -123,6 +123,11 @@ class Player(Node):
         self.topics = {n: t for n, t in topics.items() if not wanted or n in wanted}
         self.publishers_by_topic = {}
         for name, t in self.topics.items():
+            if t.serialization_format != 'cdr':
+                # Published as they are, the bytes must be what the middleware sends: CDR.
+                self.get_logger().warning(f'{name}: serialization format '
+                                          f'{t.serialization_format!r}, not cdr; not played')
+                continue
             try:
                 msg_type = message_class(t.type)
             except (ImportError, AttributeError, ValueError):
