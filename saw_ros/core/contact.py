@@ -34,6 +34,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from saw_ros.core.jit import CACHE
+
 Param = Union[float, np.ndarray]
 
 
@@ -135,7 +137,7 @@ def hysteresis_factor(rate: ArrayLike, restitution: Param, hysteresis_speed: Par
         np.asarray(rate, float) / hysteresis_speed, -1.0, 1.0)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def _hysteresis_gain(now: float, before: float, mean: float, half: float, rate: float) -> float:
     """
     Return k ((1 + e)/2 + (1 - e)/2 clip(rate / v0, -1, 1)) from the change of a deformation.
@@ -145,7 +147,7 @@ def _hysteresis_gain(now: float, before: float, mean: float, half: float, rate: 
     return max(min((now - before) * rate, half), -half) + mean
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def press_tips(law: np.ndarray, tips: np.ndarray) -> None:
     """
     Advance the contact law one step for one scenario's tips (compiled kernel).
@@ -185,7 +187,7 @@ def press_tips(law: np.ndarray, tips: np.ndarray) -> None:
         tips[FREE, p] = 1.0 if seen <= 0.0 else 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def press_all_tips(law: np.ndarray, tips: np.ndarray) -> None:
     """Run ``press_tips`` for every scenario: law (S, LAW_FIELDS), tips (S, TIP_FIELDS, P)."""
     for s in range(tips.shape[0]):

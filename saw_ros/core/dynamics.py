@@ -32,6 +32,7 @@ from saw_ros.core import stability
 from saw_ros.core.contact import ContactLaw, ContactState, NORMAL, OFFSET_X, OFFSET_Y, Param
 from saw_ros.core.contact import PENETRATION, press_tips, SEEN, TANGENTIAL, X
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
+from saw_ros.core.jit import CACHE
 from saw_ros.core.kinematics import check_no_interference, place_tips, TipRateTable, TipTable
 from saw_ros.core.kinematics import turned_table_value
 from saw_ros.core.motor import MOTOR_FIELDS, MotorLaw, TORQUE_CONSTANT, turn_helix
@@ -72,7 +73,7 @@ TRACE_FIELDS = 9
 PARALLEL_WORK = 2048
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def profile_voltage(phase: float, harmonics: np.ndarray, drive: np.ndarray) -> float:
     """
     Return a voltage profile's V at the helix phase (core.drive.PhaseProfile.voltage; kernel).
@@ -88,7 +89,7 @@ def profile_voltage(phase: float, harmonics: np.ndarray, drive: np.ndarray) -> f
     return float(min(max(drive[0] * shape, 0.0), drive[1]))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def move_body(dt: float, side: np.ndarray, rates: np.ndarray, scale: float,
               harmonics: np.ndarray, drive: np.ndarray, motor: np.ndarray, constants: np.ndarray,
               body: np.ndarray, tips: np.ndarray) -> int:
@@ -153,7 +154,7 @@ def move_body(dt: float, side: np.ndarray, rates: np.ndarray, scale: float,
     return 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scale: float,
                      side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                      harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
@@ -200,7 +201,7 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
     b[DONE] = steps
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def advance(steps: int, first: int, every: int, dt: float, scale: float, side: np.ndarray,
             table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray, drive: np.ndarray,
             law: np.ndarray, motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
@@ -213,7 +214,7 @@ def advance(steps: int, first: int, every: int, dt: float, scale: float, side: n
                          trace_tips)
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=CACHE, parallel=True)
 def advance_in_parallel(steps: int, first: int, every: int, dt: float, scale: float,
                         side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                         harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from saw_ros.core.contact import OFFSET_X, OFFSET_Y, PENETRATION, SEEN, X
+from saw_ros.core.jit import CACHE
 from saw_ros.core.params import ParameterError, RobotParams
 
 
@@ -222,7 +223,7 @@ class PhaseTable:
         return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def turned_table_value(table: np.ndarray, scale: float, phase: float, column: int, cos: float,
                        sin: float) -> Tuple[float, float]:
     """
@@ -238,7 +239,7 @@ def turned_table_value(table: np.ndarray, scale: float, phase: float, column: in
     return value.real * cos - value.imag * sin, value.real * sin + value.imag * cos
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def place_tips(table: np.ndarray, scale: float, side: np.ndarray, pose: np.ndarray, phase: float,
                gap: float, tips: np.ndarray) -> None:
     """

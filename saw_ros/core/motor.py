@@ -23,6 +23,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
+from saw_ros.core.jit import CACHE
 from saw_ros.core.params import MotorParams
 
 TWO_PI = 2.0 * math.pi
@@ -33,7 +34,7 @@ TORQUE_CONSTANT, HZ_PER_VOLT, INERTIA_DT, R_C, STICK, C, RESISTANCE, FRICTION = 
 MOTOR_FIELDS = 8
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def turn_helix(omega: float, load: float, voltage: float,
                motor: np.ndarray) -> Tuple[float, float, float]:
     """

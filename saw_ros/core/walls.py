@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from saw_ros.core.contact import DEPTH, EXPONENT, KN_HALF, KN_MEAN, KN_RATE, PENETRATION, SEEN, X
+from saw_ros.core.jit import CACHE
 from saw_ros.core.params import Scenario
 
 # Newton steps per time step at most, from the last two steps' shapes, until the deflections
@@ -108,7 +109,7 @@ WALL_ROWS = 4
 WORK_ROWS = 11
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def patch_bracket(r: float, beta: float, half: float) -> float:
     """Return the bracket of a patch load's deflection at distance r >= 0 (module docstring)."""
     if r <= half:
@@ -119,7 +120,7 @@ def patch_bracket(r: float, beta: float, half: float) -> float:
     return math.exp(-beta * u) * math.cos(beta * u) - math.exp(-beta * v) * math.cos(beta * v)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def fill_compliance(x: np.ndarray, count: int, beta: float, half: float, gain: float,
                     g: np.ndarray) -> None:
     """
@@ -147,7 +148,7 @@ def fill_compliance(x: np.ndarray, count: int, beta: float, half: float, gain: f
             g[j, i] = value
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def solve_in_place(a: np.ndarray, b: np.ndarray, count: int) -> None:
     """Solve a[:count, :count] y = b[:count] by Gaussian elimination (partial pivoting); y in b."""
     for k in range(count):
@@ -172,7 +173,7 @@ def solve_in_place(a: np.ndarray, b: np.ndarray, count: int) -> None:
         b[k] = total / a[k, k]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
 def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.ndarray,
                  count: int, law: np.ndarray, scale: float, tolerance: float,
                  work: np.ndarray, jacobian: np.ndarray, force: np.ndarray) -> Tuple[int, bool]:
@@ -198,7 +199,7 @@ def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.nda
             # F = (k_mean + clip((delta - before) rate, -k_half, k_half)) delta^p.
             change = (delta - before[i]) * rate
             factor[i] = max(min(change, half), -half) + mean
-            root[i] = delta ** (p - 1.0)
+            root[i] = math.sqrt(delta) if p == 1.5 else delta ** (p - 1.0)
             force[i] = factor[i] * (root[i] * delta)
             loading[i] = rate if abs(change) < half else 0.0     # the band's rate term
             slope[i] = factor[i] * root[i] * p + loading[i] * (root[i] * delta)
@@ -239,7 +240,27 @@ def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.nda
     return iteration + 1, converged
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=CACHE)
+def deepest(values: np.ndarray, count: int, chosen: np.ndarray) -> None:
+    """Set chosen[:count] to the indices of the ``count`` largest values, smallest first."""
+    m = 0
+    for i in range(len(values)):
+        v = values[i]
+        if m == count:
+            if v <= values[int(chosen[0])]:
+                continue
+            m -= 1                                  # drop the smallest, keep the order
+            for k in range(m):
+                chosen[k] = chosen[k + 1]
+        k = m
+        while k > 0 and values[int(chosen[k - 1])] > v:
+            chosen[k] = chosen[k - 1]
+            k -= 1
+        chosen[k] = i
+        m += 1
+
+
+@numba.njit(cache=CACHE)
 def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.ndarray,
                work: np.ndarray) -> None:
     """
@@ -276,9 +297,10 @@ def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.n
             prior[:] = last
             last[:] = 0.0
             continue
-        chosen = np.argsort(tips[PENETRATION, wall * n:(wall + 1) * n])[n - count:]
+        chosen = state[CHOSEN, wall]
+        deepest(tips[PENETRATION, wall * n:(wall + 1) * n], count, chosen)
         for k in range(count):
-            i = chosen[k]
+            i = int(chosen[k])
             x[k], depth[k], before[k] = tips[X, wall * n + i], tips[PENETRATION, wall * n + i], \
                 tips[DEPTH, wall * n + i]
             # The last two steps' deflections extrapolated (a tip not solved for before starts
@@ -294,12 +316,11 @@ def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.n
         most = max(most, iterations)
         all_converged = all_converged and converged
         for k in range(count):
-            i = chosen[k]
+            i = int(chosen[k])
             if prior[i] == 0.0:
                 prior[i] = w[k]        # a tip solved for the first time: no trend
             last[i] = w[k]
             state[LOADS, wall, i] = force[k]
-            state[CHOSEN, wall, k] = i
             tips[SEEN, wall * n + i] = depth[k] - w[k]
             largest = max(largest, w[k])
     if count == 0:
