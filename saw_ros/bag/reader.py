@@ -439,6 +439,19 @@ class BagReader:
         for f in self.files:
             if not os.path.isfile(f):
                 raise BagReadError(f'{f} is missing')
+        # rosbag2's compression (metadata.yaml): 'file' compresses each .mcap whole
+        # (x.mcap.zstd), 'message' each message's bytes; none in our recordings.
+        meta = self.metadata or {}
+        mode = str(meta.get('compression_mode') or '').lower()
+        compression = str(meta.get('compression_format') or '').lower()
+        if mode not in ('', 'none', 'file', 'message'):
+            raise BagReadError(f'{path}: compression_mode {mode!r} unknown (rosbag2 writes '
+                               "'file' or 'message')")
+        if mode in ('file', 'message') and compression != 'zstd':
+            raise BagReadError(f'{path}: compression_format {compression!r} cannot be read '
+                               "(rosbag2 compresses with 'zstd')")
+        self._file_compressed = mode == 'file'
+        self._message_compressed = mode == 'message'
         # What the last scan of each file found: bytes after its last complete record (None:
         # finished), damaged places, messages read, messages its summary counts.
         self._tail: Dict[str, Optional[int]] = {}
@@ -511,8 +524,9 @@ class BagReader:
     def _scan(self, path: str, wanted) -> Iterator[BagMessage]:
         self._damage[path], self._read[path], self._tail[path] = [], 0, None
         found: List[Damage] = []
-        with open(path, 'rb') as f:
-            size = os.fstat(f.fileno()).st_size
+        with self._open(path) as f:
+            size = f.seek(0, io.SEEK_END)
+            f.seek(0)
             head = f.read(len(MAGIC))
             if head != MAGIC[:len(head)]:
                 raise BagReadError(f'{path} is not an MCAP file (no MCAP magic at its start)')
@@ -525,6 +539,19 @@ class BagReader:
                 return
             f.seek(len(MAGIC))
             yield from self._scan_records(f, path, size, summary, wanted)
+
+    def _open(self, path: str):
+        """Open one file of the bag; a compressed one ('file' mode) decompressed in memory."""
+        if not self._file_compressed:
+            return open(path, 'rb')
+        import zstandard
+        with open(path, 'rb') as f:
+            try:
+                return io.BytesIO(zstandard.ZstdDecompressor().decompressobj().decompress(
+                    f.read()))
+            except zstandard.ZstdError as exc:
+                raise BagReadError(f'{path} does not decompress as zstd (compression_mode '
+                                   f'file in metadata.yaml): {exc}') from None
 
     def _scan_records(self, f, path, size, summary: _Summary, wanted) -> Iterator[BagMessage]:
         """
@@ -710,8 +737,21 @@ class BagReader:
         if wanted is not None and channel.topic not in wanted:
             return None
         schema = scan.schemas.get(channel.schema_id)
+        if self._message_compressed:
+            data = self._decompress_message(scan.path, channel.topic, log_time, data)
         return BagMessage(channel.topic, schema.name if schema else '', data, log_time,
                           publish_time, sequence, channel, schema)
+
+    @staticmethod
+    def _decompress_message(path: str, topic: str, log_time: int, data) -> bytes:
+        """Return a message of a 'message'-compressed bag, decompressed (zstd frame)."""
+        import zstandard
+        try:
+            return zstandard.ZstdDecompressor().decompressobj().decompress(bytes(data))
+        except zstandard.ZstdError as exc:
+            raise BagReadError(f'{path}: the {topic} message at {stamp(log_time)} does not '
+                               f'decompress as zstd (compression_mode message in '
+                               f'metadata.yaml): {exc}') from None
 
     @staticmethod
     def _chunk_damage(path, offset, number, summary: _Summary, index: Optional[ChunkIndex],
