@@ -117,6 +117,17 @@ def test_params_files_that_rcl_would_refuse(tmp_path, content, text):
     assert str(exc.value).startswith(f'params file {path} {text}'), str(exc.value)
 
 
+def test_a_params_file_of_ros2_launch_with_a_list_parameter_is_taken(tmp_path):
+    """launch_ros writes a list as !!python/tuple; rcl takes it, so must our check (issue 34)."""
+    import yaml
+    from saw_ros.ros.runtime import check_command_line
+    path = tmp_path / 'launch_params.yaml'
+    with open(path, 'w', encoding='utf-8') as f:
+        yaml.dump({'/**': {'ros__parameters': {'topics': ('/saw/pose', '/tf')}}}, f)
+    assert '!!python/tuple' in path.read_text()
+    check_command_line(['recorder', '--ros-args', '--params-file', str(path)])
+
+
 def test_help_text_lists_every_entry_with_type_unit_range_default():
     from saw_ros.ros.runtime import help_text
     entries = [('rate', 1.0, RATE), ('count', 3, COUNT), ('topics', [''], spec_meta('', 'what')),
