@@ -8,6 +8,7 @@ Launch-free: the nodes are subprocesses (saw_ros.graph.process) in the run's iso
 started as the main job starts them (saw_ros.graph.pipeline.run_pipeline); every wait is on a
 condition.
 """
+import json
 import os
 import signal
 import time
@@ -137,6 +138,8 @@ def check_bag(bag_dir, steps=None, frames=None, fps=60.0):
     for m in reader.messages(list(stamps)):
         stamps[m.topic].append(header_stamp_ns(m.data))
     missing = {}
+    custom = reader.metadata.get('custom_data') or {}
+    lost = json.loads(custom.get('saw_ros.lost_messages', '{}'))
     for topic in SIM_TOPICS:
         got = np.array(stamps[topic])
         # (Stopped together, the recorder may miss the last step or two still in flight.)
@@ -145,6 +148,10 @@ def check_bag(bag_dir, steps=None, frames=None, fps=60.0):
         last = steps if steps is not None else got[-1] // MS
         assert got[-1] == last * MS, f'{topic}: last step {got[-1] // MS} of {last}'
         missing[topic] = int(last - len(got))
+        if steps is not None:
+            # Whatever the recorder missed while running, it said so: its count from the
+            # publishers' sequence numbers is the steps absent from the bag.
+            assert lost.get(topic, 0) == missing[topic], (topic, lost, missing)
     if frames is not None:
         got = stamps[INFO]
         assert got and got[-1] == int(round(frames * 1e9 / fps)), \
@@ -211,16 +218,17 @@ class Counter:
         self.node.destroy_node()
 
 
-# Rounds: the signal alternates; stopped in run_pipeline's order (then the camera's frames are
-# all in the bag), or all at once while every node is busy.
-ROUNDS = [(signal.SIGINT, False), (signal.SIGTERM, False), (signal.SIGINT, True),
-          (signal.SIGTERM, True), (signal.SIGINT, False)]
+# Rounds: each signal once, and each way of stopping once: in run_pipeline's order (then the
+# camera's frames are all in the bag), or all at once while every node is busy. (Every node
+# handles SIGINT and SIGTERM alike, saw_ros.ros.runtime; five rounds, every pairing and one
+# more, cost 70 s of a suite that has ten minutes on the slower machine.)
+ROUNDS = [(signal.SIGINT, False), (signal.SIGTERM, True)]
 
 
 @pytest.mark.slow
 def test_whole_graph_stops_cleanly_on_sigint_and_sigterm_every_time(tmp_path, ros_context):
     """
-    Stop five rounds of the whole graph while tracking runs: each time, all end cleanly.
+    Stop the whole graph while tracking runs, by SIGINT and by SIGTERM: each time, all end cleanly.
 
     Simulator, camera, vision, comparison and recorder: every node exits 0 with neither traceback
     nor FATAL line, and the bag is complete.
@@ -259,20 +267,21 @@ def test_whole_graph_stops_cleanly_on_sigint_and_sigterm_every_time(tmp_path, ro
 @pytest.mark.slow
 def test_simulator_stops_cleanly_on_sigint_while_publishing(tmp_path, ros_context):
     """
-    Ctrl-C a simulator ten times while it publishes its 1 kHz streams to the test's subscribers.
+    Ctrl-C a simulator three times while it publishes its 1 kHz streams to the test's subscribers.
 
     Each time: exit 0, no traceback, no FATAL line, and every step it published received.
     """
     env = dict(os.environ)
-    for i in range(10):
+    for i in range(3):
         watcher = Counter(ros_context, SIM_TOPICS)
         # (At real-time factor 0.5: 3000 messages/s, which the test's own Python subscriber
         # keeps up with while other tests load the machine; it must not fall 1000 behind.)
         proc = ManagedProcess(f'simulator{i}', node_command('simulator', params={
             'real_time_factor': 0.5, 'wait_for_subscribers': 1}), env, tmp_path / 'logs')
         try:
-            # Stopped at a different moment of publishing each time (50-275 steps in).
-            assert watcher.wait(6 * (50 + 25 * i), 30), proc.output()
+            # Stopped at a different moment of publishing each time (50, 250, 450 steps in). The
+            # wait includes the simulator's start (tens of seconds on a busy machine).
+            assert watcher.wait(6 * (50 + 200 * i), 90), proc.output()
             proc.signal(signal.SIGINT)
             code = proc.wait(STOP_TIMEOUT)
             why = clean(proc, code)
