@@ -69,7 +69,8 @@ TOPICS: Tuple[Topic, ...] = (
     Topic(CONTACT_WRENCH, 'geometry_msgs/msg/WrenchStamped', 'stream', 'simulator', '1000 Hz',
           'base_link', 'net contact force and moment about the COM'),
     Topic(JOINT_STATES, 'sensor_msgs/msg/JointState', 'stream', 'simulator', '1000 Hz',
-          'base_link', 'helix phase, speed and motor torque (effort), and the links'),
+          'base_link', 'helix phase, speed and motor torque (effort), and every URDF joint: '
+          "each wave link's angle, its centre along x and along y"),
     Topic(MOTOR, 'sensor_msgs/msg/BatteryState', 'tracking', 'simulator', '100 Hz', 'base_link',
           'motor supply voltage and current (negative: drawn; NaN at constant frequency)'),
     Topic(MOTOR_COMMANDS, 'std_msgs/msg/Float64MultiArray', 'command', 'speed_controller',
@@ -106,8 +107,8 @@ TOPICS: Tuple[Topic, ...] = (
     Topic(TRACKING_MARKERS, 'visualization_msgs/msg/MarkerArray', 'tracking', 'vision',
           '60 Hz', 'surface', "the tracker's marker centres and pose, over /saw/markers"),
     Topic(TF, 'tf2_msgs/msg/TFMessage', 'tracking', 'simulator, vision', '60 Hz', 'surface',
-          'surface -> base_link (simulator, markers_rate), surface -> base_link_tracked '
-          '(vision, per frame); saw_ros.interface.frames'),
+          'surface -> base_link and every link frame of the URDF (simulator, markers_rate, '
+          'link_tf), surface -> base_link_tracked (vision, per frame); saw_ros.interface.frames'),
     Topic(TF_STATIC, 'tf2_msgs/msg/TFMessage', 'latched', 'camera', 'once', 'surface',
           'surface -> saw_camera, the camera optical frame'),
     Topic(ROBOT_DESCRIPTION, 'std_msgs/msg/String', 'latched', 'simulator', 'once', '',
