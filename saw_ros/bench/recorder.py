@@ -4,6 +4,10 @@ Recorder throughput: the highest message rate it keeps with zero loss, and its d
 The publisher runs in another process (the ``loadgen`` node, 6 topics of the simulator's types),
 its rate raised until messages are lost; at the default load (1 kHz on the 6 simulator topics
 plus 60 fps 1280x720 rgb8 images) the bench reports the messages lost and the CPU share.
+``recorder_lossless_foreign_hogs``: the most CPU-bound processes of another program (``while
+True: pass``, normal priority; 1, 2, 4, 8 of them on the machine's cores) beside which the
+recorder still loses nothing of the default load; 0 when it loses with one, None when the default
+load alone failed, the top rung (8) flagged as a lower bound in ``..._capped``.
 
 The recorder is started with ``exclude_topics`` empty: the default load includes the raw images.
 Logs of every trial stay in ``log_dir('recorder')`` (the bag is deleted once counted); a trial
@@ -17,7 +21,10 @@ import subprocess
 import time
 
 KEYS = ('recorder_max_msgs_per_s', 'recorder_lost_messages', 'recorder_cpu_share',
-        'recorder_default_load_msgs_per_s')
+        'recorder_default_load_msgs_per_s', 'recorder_lossless_foreign_hogs',
+        'recorder_lossless_foreign_hogs_capped')
+HOGS = (1, 2, 4, 8)
+DEFAULT_LOAD = {'rate': 1000.0, 'streams': 6, 'image_fps': 60.0}
 
 
 def _cpu_seconds(pid: int) -> float:
@@ -96,8 +103,8 @@ def run(quick: bool = False) -> dict:
     duration = 1.5 if quick else 3.0
     work = log_dir('recorder')
     try:
-        total, elapsed, lost, cpu = _trial(work, 'default', env, rate=1000.0, duration=duration,
-                                           streams=6, image_fps=60.0)
+        total, elapsed, lost, cpu = _trial(work, 'default', env, duration=duration,
+                                           **DEFAULT_LOAD)
         default = {'recorder_lost_messages': lost, 'recorder_cpu_share': round(cpu, 3),
                    'recorder_default_load_msgs_per_s': round(total / elapsed)}
     except TrialFailed as exc:
@@ -116,4 +123,31 @@ def run(quick: bool = False) -> dict:
         if loss:
             break
         best = max(best, n / dt)
-    return {'recorder_max_msgs_per_s': round(best), **default}
+    hogs = None if default['recorder_lost_messages'] is None else foreign_hogs(
+        work, env, duration)
+    return {'recorder_max_msgs_per_s': round(best), **default,
+            'recorder_lossless_foreign_hogs': hogs,
+            'recorder_lossless_foreign_hogs_capped': hogs == HOGS[-1]}
+
+
+def foreign_hogs(work: Path, env, duration: float) -> int:
+    """Return the most CPU hogs (HOGS) beside which the default load is recorded without loss."""
+    import sys
+    held = 0
+    for n in HOGS:
+        hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                for _ in range(n)]
+        try:
+            _, _, lost, _ = _trial(work, f'hogs{n}', env, duration=duration, **DEFAULT_LOAD)
+        except TrialFailed as exc:
+            print(f'bench recorder: {n} hogs: {exc}', file=sys.stderr, flush=True)
+            lost = None
+        finally:
+            for hog in hogs:
+                hog.kill()
+                hog.wait()
+        if lost != 0:
+            break
+        held = n
+    return held

@@ -47,3 +47,41 @@ def test_simulator_node_ladder_climbs_past_5(tmp_path, monkeypatch, limit):
     assert out['sim_max_realtime_factor_is_lower_bound'] is (limit >= simulator_node.LADDER[-1])
     assert simulator_node.LADDER[-1] >= 10 * 5.0
     json.dumps(out)
+
+
+
+class _Hog:
+    """Stands in for a CPU hog process: it must be killed and waited for."""
+
+    running = []
+
+    def __init__(self, argv, **kwargs):
+        assert 'while True: pass' in argv[-1]
+        _Hog.running.append(self)
+
+    def kill(self):
+        _Hog.running.remove(self)
+
+    def wait(self):
+        assert self not in _Hog.running
+
+
+@pytest.mark.parametrize('limit', [0, 1, 3, 8])
+def test_recorder_foreign_hogs_is_the_last_rung_without_loss(tmp_path, monkeypatch, limit):
+    from saw_ros.bench import recorder
+    rungs = []
+
+    def trial(work, name, env, **load):
+        n = int(name[len('hogs'):])
+        rungs.append(n)
+        # the default load, with n hogs running beside it
+        assert len(_Hog.running) == n and load == dict(recorder.DEFAULT_LOAD, duration=1.5)
+        return 1000, 1.0, 0 if n <= limit else 3, 0.2
+
+    _Hog.running = []
+    monkeypatch.setattr(recorder.subprocess, 'Popen', _Hog)
+    monkeypatch.setattr(recorder, '_trial', trial)
+    held = recorder.foreign_hogs(tmp_path, {}, 1.5)
+    assert held == max([0] + [n for n in recorder.HOGS if n <= limit]) and not _Hog.running
+    below = [n for n in recorder.HOGS if n <= limit]
+    assert rungs == below + [n for n in recorder.HOGS if n > limit][:1]   # stops at a loss
