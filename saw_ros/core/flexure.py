@@ -214,9 +214,9 @@ def transmissibility(frequency: float, stiffness: float, damping: float, mass: f
 
 
 @compiled
-def replay_links(bottom: np.ndarray, top: np.ndarray, stiffness: float, damping: float,
-                 mass: float, dt: float, law: np.ndarray, reaction: np.ndarray,
-                 deflection: np.ndarray) -> None:
+def replay_links(bottom: np.ndarray, top: np.ndarray, before_bottom: np.ndarray,
+                 before_top: np.ndarray, stiffness: float, damping: float, mass: float, dt: float,
+                 law: np.ndarray, reaction: np.ndarray, deflection: np.ndarray) -> None:
     """
     Drive n flexure links through T steps of prescribed tip penetrations (T, n); fill (T, n).
 
@@ -224,7 +224,9 @@ def replay_links(bottom: np.ndarray, top: np.ndarray, stiffness: float, damping:
     a run of the rigid robot, the body's motion held to that run; each step balances every link
     against its contacts (``balance_links``, ``law`` from ``contact_law``) and advances it
     (``Flexures.advance``).
-    ``reaction`` gets what the backbone feels (N, + y), ``deflection`` e (m).
+    ``before_bottom``, ``before_top`` (n,): the contacts' depths the step before the first
+    (the law's memory; updated). ``reaction`` gets what the backbone feels (N, + y),
+    ``deflection`` e (m).
     """
     phi = oscillator_step(stiffness, mass, damping, dt)
     k, c = stiffness, damping
@@ -232,7 +234,6 @@ def replay_links(bottom: np.ndarray, top: np.ndarray, stiffness: float, damping:
     n = bottom.shape[1]
     e, rate, load = np.zeros(n), np.zeros(n), np.zeros(n)
     free, solved = np.empty(n), np.empty(n)
-    before_bottom, before_top = np.zeros(n), np.zeros(n)
     fb, ft, out = np.empty(n), np.empty(n), np.empty(n)
     for step in range(bottom.shape[0]):
         _free(e, rate, load, k, c, dt, phi, free)

@@ -150,6 +150,10 @@ CASES = [
     ('shape-drive --generations 0', '--generations 0: must be at least 1'),
     ('shape-drive --out {d}/text.txt', '--out {d}/text.txt: is a file, not a folder'),
     ('shape-drive --slope-deg 100', '--slope-deg = 100'),
+    # compliant
+    ('compliant --out {d}/text.txt', '--out {d}/text.txt: is a file, not a folder'),
+    ('compliant --slope-deg 100', '--slope-deg = 100'),
+    ('compliant --set surface.foundation_stiffness=1e5', 'bending walls'),
     # bench
     ('bench --only nosuch', "unknown benchmark(s) ['nosuch']"),
     ('bench --only core --logs {d}/text.txt', '--logs {d}/text.txt: is a file, not a folder'),

@@ -137,16 +137,16 @@ def test_replaying_penetrations_matches_the_stepped_flexures_and_rigid_links():
     top = np.ascontiguousarray(0.002 * np.sin(phase + math.pi))
     reaction, deflection = np.empty_like(bottom), np.empty_like(bottom)
     law = contact_law(SurfaceParams(), 1e-3)             # the paper's, with its hysteresis
-    replay_links(bottom, top, TPU.stiffness, TPU.damping, TPU.link_mass, 1e-3, law, reaction,
-                 deflection)
+    replay_links(bottom, top, np.zeros(4), np.zeros(4), TPU.stiffness, TPU.damping,
+                 TPU.link_mass, 1e-3, law, reaction, deflection)
     flexures = Flexures(TPU, 4, 1e-3)
     before = (np.zeros(4), np.zeros(4))
     for i in range(len(t)):
         drive(flexures, bottom[i], top[i], law, before)
         np.testing.assert_allclose(flexures.reaction, reaction[i], rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(flexures.deflection, deflection[i], rtol=1e-9, atol=1e-15)
-    replay_links(bottom, top, 1e9, 0.0, TPU.link_mass, 1e-3, elastic_law(KN, EXPONENT),
-                 reaction, deflection)
+    replay_links(bottom, top, np.zeros(4), np.zeros(4), 1e9, 0.0, TPU.link_mass, 1e-3,
+                 elastic_law(KN, EXPONENT), reaction, deflection)
     loads = KN * np.maximum(bottom, 0) ** 1.5 - KN * np.maximum(top, 0) ** 1.5
     np.testing.assert_allclose(reaction, loads, atol=2e-3 * np.abs(loads).max())
 

@@ -1,0 +1,45 @@
+"""The open-loop flexure study (issue 31): its replay holds the rigid run, and it measures."""
+import numpy as np
+import pytest
+
+from saw_ros.analysis import compliant
+from saw_ros.core.params import Scenario
+
+BASE = Scenario().with_values({'motor.voltage': 6.0})
+
+
+@pytest.fixture(scope='module')
+def run():
+    return compliant.rigid_run(BASE, settle=1.0, measure=0.5)
+
+
+def test_rigid_links_replayed_give_the_runs_own_vibration(run):
+    """The replay's contact law (hysteresis included) rebuilds the body's normal force."""
+    assert abs(compliant.rigid_check(run)) < 5e-3
+    np.testing.assert_allclose(compliant.rigid_force(run) - run.normal_force,
+                               np.mean(compliant.rigid_force(run) - run.normal_force),
+                               atol=0.05 * np.std(run.normal_force))
+
+
+def test_softer_flexures_calm_the_forcing_and_stiff_ones_change_nothing(run):
+    rows = compliant.sweep(run, stiffnesses=(500.0, 1e7), ratios=(0.2,))
+    soft, stiff = rows
+    assert soft['reduction_pct'] > 30.0
+    assert abs(stiff['reduction_pct']) < 0.5
+    assert soft['largest_deflection_mm'] > 10 * stiff['largest_deflection_mm']
+    # Balanced: the soft links carry the rigid run's mean load, the body settled for it.
+    force, _, shift = compliant.balanced(run, compliant.flexure_of(500.0, 0.2, 0.004))
+    rigid = compliant.steady(run, compliant.rigid_force(run))
+    assert compliant.steady(run, force).mean() == pytest.approx(rigid.mean(), rel=1e-3)
+    assert shift > 0
+
+
+def test_the_report_is_written(run, tmp_path):
+    rows = compliant.sweep(run, stiffnesses=(500.0, 5000.0), ratios=(0.2,))
+    printed = compliant.printed_rows(run, compliant.LINK_MASS)
+    summary = compliant.write_report(rows, printed, run, BASE, tmp_path / 'out')
+    text = (tmp_path / 'out' / 'report.md').read_text()
+    assert 'Open loop' in text and 'TPU' in text
+    assert (tmp_path / 'out' / 'compliant.png').stat().st_size > 10000
+    assert len((tmp_path / 'out' / 'compliant.csv').read_text().splitlines()) == 3
+    assert summary['TPU_reduction_pct'] == pytest.approx(printed[0]['reduction_pct'])
