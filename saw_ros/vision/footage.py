@@ -252,9 +252,10 @@ class Shot:
                      cv2.LINE_AA)
         cam = self.camera()
         half = 1.5 * (self.width + 2 * MARGIN) / self.scale
-        for y0, y1, colour in ((-0.035, -0.008, (60, 100, 140)), (0.053, 0.080, (60, 100, 140)),
-                               (-0.008, 0.0, (190, 200, 205)), (0.045, 0.053, (190, 200, 205))):
-            corners = np.array([-half + 1j * y0, half + 1j * y0, half + 1j * y1, -half + 1j * y1])
+        for low, high, colour in ((-0.035, -0.008, (60, 100, 140)), (0.053, 0.080, (60, 100, 140)),
+                                  (-0.008, 0.0, (190, 200, 205)), (0.045, 0.053, (190, 200, 205))):
+            corners = np.array([-half + 1j * low, half + 1j * low, half + 1j * high,
+                                -half + 1j * high])
             self._poly(img, cam.to_pixels(corners + 1j * self.track_y) + MARGIN * (1 + 1j),
                        colour)
         if self.red_clutter:
@@ -269,8 +270,7 @@ class Shot:
             p = complex(-0.35 + 0.25 * k, 0.13 + 0.02 * k + self.track_y)
             self._disc(img, cam.to_pixels(p) + MARGIN * (1 + 1j),
                        0.5 * self.marker_diameter * self.scale, MARKER_BGR)
-        img = cv2.GaussianBlur(img, (0, 0), 0.7)
-        return np.clip(img, 0, 255).astype(np.uint8)
+        return np.clip(cv2.GaussianBlur(img, (0, 0), 0.7), 0, 255).astype(np.uint8)
 
     @staticmethod
     def _poly(img, points, colour) -> None:
@@ -386,7 +386,7 @@ class Shot:
                     .astype(np.uint8)
             if self.quality:
                 ok, buf = cv2.imencode('.jpg', frame, [cv2.IMWRITE_JPEG_QUALITY, self.quality])
-                frame = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+                frame = np.asarray(cv2.imdecode(buf, cv2.IMREAD_COLOR))
             yield k, float(t), frame
 
     def occluded(self, t: float, name: str) -> bool:
@@ -456,7 +456,7 @@ def track_shot(shot: Shot, slope_known: bool = False, config: TrackerConfig = Tr
         results.append(res)
         seen = shot.visible(t, 'front') and shot.visible(t, 'back')
         right = False
-        if res.ok:
+        if res.ok and res.front is not None and res.back is not None:
             # The truth in the tracker's surface frame: the track's when the slope is used.
             front, back = shot.truth(t)
             right = max(abs(res.front - front), abs(res.back - back)) <= \

@@ -135,7 +135,7 @@ def jpeg(frame: np.ndarray, quality: int) -> np.ndarray:
     ok, buf = cv2.imencode('.jpg', frame, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise RuntimeError('JPEG encoding failed')
-    return cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    return np.asarray(cv2.imdecode(buf, cv2.IMREAD_COLOR))
 
 
 def draw_clutter(img: np.ndarray, camera: CameraModel, things: Iterable[Clutter], t: float,

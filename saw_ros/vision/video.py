@@ -80,7 +80,7 @@ class VideoWriter:
         if self.path.parent and not self.path.parent.exists():
             self.path.parent.mkdir(parents=True, exist_ok=True)
         self.size = (int(size[0]), int(size[1]))
-        self._writer = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*fourcc),
+        self._writer = cv2.VideoWriter(str(self.path), cv2.VideoWriter.fourcc(*fourcc),
                                        float(fps), self.size)
         if not self._writer.isOpened():
             raise VideoError(f'cannot write video {self.path} (codec {fourcc!r}, {fps} fps, '
