@@ -244,8 +244,8 @@ The rigid robot ({drive}, slope {math.degrees(base.conditions.slope):g} deg; {SE
 settle, then {len(steady(run, run.bottom)) * run.dt:g} s measured) gives every tip's penetration
 into the rigid walls at every step. Flexure links (core.flexure, {LINK_MASS * 1000:g} g each)
 are driven through them with the simulator's contact law, hysteresis included, and what the
-backbone feels replaces the tips' loads in the body's normal force; the body is shifted towards the bottom wall until the
-links carry the rigid run's mean load again ("settles"). The rigid links replayed this way give
+backbone feels replaces the tips' loads in the body's normal force; the body is shifted
+towards the bottom wall until the links carry the rigid run's mean load again ("settles"). The rigid links replayed this way give
 the run's own vibration back (to {100 * abs(check):.1e} %).
 
 **Open loop**: the body's motion is the rigid run's. What the body does with the changed
