@@ -4,7 +4,9 @@ The topic table: every topic our nodes publish, in one place (pure: no rclpy).
 Each entry names the topic, its message type ('geometry_msgs/msg/PoseStamped'), its QoS profile
 by name (``saw_ros.ros.qos.profile`` / ``publisher_profile`` turn it into an rclpy QoSProfile;
 ``saw_ros.ros.qos.message_class`` the type into its class), the node that publishes it, rate,
-frame and a one-line description. The nodes, the graph, the benchmarks and the tests take
+frame and a one-line description; which nodes subscribe to it, and what a message from anyone
+else on the DDS domain can still do when it passes every check (``trust``; docs/security.md).
+The nodes, the graph, the benchmarks and the tests take
 topic names from here; ``msg_config/record_topics.yaml`` is generated from it
 (``python -m saw_ros.interface.topics --write-record-yaml msg_config/record_topics.yaml``) and
 the README's topic table is checked against it (tests/interface/test_topics.py).
@@ -26,6 +28,8 @@ class Topic:
     frame: str          # '' when the topic has no frame
     description: str
     recorded: bool = True   # by the recorder by default (msg_config/record_topics.yaml)
+    subscribers: str = ''   # our nodes that subscribe (the recorder: see subscribed_by)
+    trust: str = ''         # what a spoofed message that passes the checks can still do
 
 
 CLOCK = '/clock'
@@ -61,41 +65,68 @@ TOPICS: Tuple[Topic, ...] = (
     Topic(CLOCK, 'rosgraph_msgs/msg/Clock', 'clock', 'simulator', '1000 Hz', '',
           'simulated time, one per step'),
     Topic(POSE, 'geometry_msgs/msg/PoseStamped', 'stream', 'simulator', '1000 Hz', 'surface',
-          'robot pose (centre of mass, pitch)'),
+          'robot pose (centre of mass, pitch)', subscribers='camera, comparison',
+          trust='a finite pose in frame surface within 1 km, stamped in order: moves the drawn '
+                'robot and the camera on its rail, and enters the comparison; a stream of '
+                'earlier stamps restarts both, as a replay does'),
     Topic(TWIST, 'geometry_msgs/msg/TwistStamped', 'stream', 'simulator', '1000 Hz', 'surface',
-          'robot velocity'),
+          'robot velocity', subscribers='speed_controller',
+          trust="a finite speed stamped in order: the speed controller's ground_truth "
+                'feedback, so it changes the voltage commanded (within voltage_min..max)'),
     Topic(CONTACTS, 'sensor_msgs/msg/PointCloud2', 'stream', 'simulator', '1000 Hz', 'surface',
           'contact points with their forces, link, surface and slipping'),
     Topic(CONTACT_WRENCH, 'geometry_msgs/msg/WrenchStamped', 'stream', 'simulator', '1000 Hz',
           'base_link', 'net contact force and moment about the COM'),
     Topic(JOINT_STATES, 'sensor_msgs/msg/JointState', 'stream', 'simulator', '1000 Hz',
           'base_link', 'helix phase, speed and motor torque (effort), and every URDF joint: '
-          "each wave link's angle, its centre along x and along y"),
+          "each wave link's angle, its centre along x and along y",
+          subscribers='camera, comparison, speed_controller',
+          trust='a finite helix position and velocity, arrays one a name: the camera draws '
+                'that wave phase, the comparison counts helix turns with it, the speed '
+                "controller's helix feedback changes the voltage commanded"),
     Topic(MOTOR, 'sensor_msgs/msg/BatteryState', 'tracking', 'simulator', '100 Hz', 'base_link',
           'motor supply voltage and current (negative: drawn; NaN at constant frequency)'),
     Topic(MOTOR_COMMANDS, 'std_msgs/msg/Float64MultiArray', 'command', 'speed_controller',
           '60 Hz (speed_controller), or yours', '',
           "the helix's drive: [voltage V] with a motor, [frequency Hz] without "
-          '(ros2_control forward-command convention; saw_ros.ros.command)'),
+          '(ros2_control forward-command convention; saw_ros.ros.command)',
+          subscribers='simulator',
+          trust="one finite value in the parameter's range: drives the helix (voltage or "
+                'frequency) until the next command or command_timeout'),
     Topic(WALLS, 'sensor_msgs/msg/PointCloud2', 'tracking', 'simulator', '60 Hz', 'surface',
           "the bending walls' shape (surface.foundation_stiffness > 0 only): x, y, "
-          'deflection, surface'),
+          'deflection, surface', subscribers='camera',
+          trust='a well-formed shape (fields, sizes, finite, two points a wall): the camera '
+                'draws the walls bent that way for 0.25 s'),
     Topic(IMAGE, 'sensor_msgs/msg/Image', 'image', 'camera', '60 Hz', 'saw_camera',
-          'virtual camera frames, bgr8 1280x720', recorded=False),
+          'virtual camera frames, bgr8 1280x720', recorded=False, subscribers='vision',
+          trust='a bgr8/rgb8 image within max_image_pixels, stamped in order: tracked as a '
+                'frame (a wrong picture gives wrong tracking outputs; a new size restarts the '
+                'tracker)'),
     Topic(IMAGE_COMPRESSED, 'sensor_msgs/msg/CompressedImage', 'image', 'camera', '60 Hz',
-          'saw_camera', "the same frames as JPEG, image_transport's 'compressed' format"),
+          'saw_camera', "the same frames as JPEG, image_transport's 'compressed' format",
+          subscribers='vision',
+          trust='a JPEG/PNG declaring at most max_image_pixels that decodes: tracked as a '
+                'frame (vision with image_transport compressed)'),
     Topic(CAMERA_INFO, 'sensor_msgs/msg/CameraInfo', 'image', 'camera', '60 Hz', 'saw_camera',
-          'K, P matching the rendering'),
+          'K, P matching the rendering', subscribers='vision',
+          trust="finite K with a focal length: sets the tracker's scale (a changed principal "
+                'point moves its camera, other changes restart it)'),
     Topic(TRACKING_FRONT, 'geometry_msgs/msg/PointStamped', 'tracking', 'vision', '60 Hz',
           'surface', 'front marker centre'),
     Topic(TRACKING_BACK, 'geometry_msgs/msg/PointStamped', 'tracking', 'vision', '60 Hz',
           'surface', 'back marker centre'),
     Topic(TRACKING_POSE, 'geometry_msgs/msg/PoseStamped', 'tracking', 'vision', '60 Hz',
-          'surface', 'tracked robot position and pitch'),
+          'surface', 'tracked robot position and pitch', subscribers='comparison',
+          trust='a finite pose in frame surface within 1 km, stamped in order: enters the '
+                "comparison's tracked speed"),
     Topic(TRACKING_TWIST, 'geometry_msgs/msg/TwistStamped', 'tracking', 'vision', '60 Hz',
           'surface', 'instantaneous tracked speed'),
     Topic(TRACKING_TWIST_SMOOTHED, 'geometry_msgs/msg/TwistStamped', 'tracking', 'vision',
-          '60 Hz', 'surface', 'tracked speed, least squares over 0.25 s'),
+          '60 Hz', 'surface', 'tracked speed, least squares over 0.25 s',
+          subscribers='speed_controller',
+          trust="a finite speed stamped in order: the speed controller's tracking feedback, "
+                'so it changes the voltage commanded'),
     Topic(TRACKING_STEADY_SPEED, 'geometry_msgs/msg/TwistStamped', 'tracking', 'vision',
           '60 Hz', 'surface', 'steady mean tracked speed'),
     Topic(TRACKING_STATUS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking', 'vision', '60 Hz',
@@ -113,14 +144,35 @@ TOPICS: Tuple[Topic, ...] = (
           'surface -> saw_camera, the camera optical frame'),
     Topic(ROBOT_DESCRIPTION, 'std_msgs/msg/String', 'latched', 'simulator', 'once', '',
           'URDF of the robot (saw_ros.interface.urdf), for robot_state_publisher and RViz'),
-    Topic(DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking', 'simulator',
+    Topic(DIAGNOSTICS, 'diagnostic_msgs/msg/DiagnosticArray', 'tracking',
+          'simulator, camera, vision, comparison, speed_controller',
           '1 Hz, and at each fault', '', "the simulator's health: OK, WARN after recoveries, "
-          'ERROR at each divergence or change the state cannot take, with the reset it made'),
+          'ERROR at each divergence or change the state cannot take, with the reset it made; '
+          "every node's refused input messages, per topic and reason (saw_ros.ros.guard)"),
     Topic(READY, 'diagnostic_msgs/msg/DiagnosticArray', 'latched', 'camera, comparison, vision',
           'once per node', '', "node's status: name, level OK, 'ready': 'true' once its inputs "
-          'matched (saw_ros.ros.ready)', recorded=False),
+          'matched (saw_ros.ros.ready)', recorded=False, subscribers='ready_probe',
+          trust='any status: the start-up probe (python -m saw_ros.ros.ready) takes a node '
+                'for ready, and the recorder may start before it'),
 )
 BY_NAME = {t.name: t for t in TOPICS}
+# Topics rclpy itself gives every node (not ours, so not in TOPICS nor recorded), that a node of
+# ours subscribes to.
+PARAMETER_EVENTS = '/parameter_events'
+ROSOUT = '/rosout'
+RCL_TOPICS: Tuple[Topic, ...] = (
+    Topic(PARAMETER_EVENTS, 'rcl_interfaces/msg/ParameterEvent', 'parameter_events',
+          'every node', 'at each parameter change', '', 'parameter changes of every node',
+          recorded=False, subscribers='camera, comparison',
+          trust="new values for the simulator's robot, gap or conditions that a Scenario "
+                'accepts: the camera draws that robot and gap, the comparison restarts with '
+                'those conditions (saw_ros.ros.simulator_parameters)'),
+    Topic(ROSOUT, 'rcl_interfaces/msg/Log', 'rosout', 'every node', 'per log line', '',
+          "every node's log", recorded=False),
+)
+# The recorder subscribes to what it records (default: every recorded topic), raw: it writes the
+# bytes as they came and parses none, so no message can make it fail.
+RECORDER = 'recorder'
 
 
 def topic(name: str) -> Topic:
@@ -129,6 +181,17 @@ def topic(name: str) -> Topic:
 
 def published_by(node: str) -> Tuple[Topic, ...]:
     return tuple(t for t in TOPICS if node in t.publisher.split(', '))
+
+
+def subscribed_by(node: str) -> Tuple[Topic, ...]:
+    """Return the topics ``node`` subscribes to (the recorder: every recorded topic)."""
+    return tuple(t for t in TOPICS + RCL_TOPICS
+                 if node in t.subscribers.split(', ') or node == RECORDER and t.recorded)
+
+
+def subscribers(t: Topic) -> Tuple[str, ...]:
+    """Return the nodes subscribing to ``t``: its ``subscribers``, and the recorder if recorded."""
+    return tuple(n for n in t.subscribers.split(', ') if n) + ((RECORDER,) if t.recorded else ())
 
 
 def step_topics() -> Tuple[str, ...]:

@@ -66,6 +66,16 @@ def pose_stamped_ns(data: bytes):
     return sec * NS_PER_S + nanosec, x, y, 2.0 * math.atan2(qz, qw)
 
 
+def pose_stamped(data: bytes):
+    """(stamp in ns, frame_id, x, y, (qx, qy, qz, qw)) of a geometry_msgs/PoseStamped."""
+    e = _prefix(data)
+    sec, nanosec, length = struct.unpack_from(e + 'iII', data, _HEADER)
+    frame_id = bytes(data[_HEADER + 12:_HEADER + 12 + length]).rstrip(b'\0').decode()
+    offset = _align(12 + length, 8)
+    x, y, _z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, _HEADER + offset)
+    return sec * NS_PER_S + nanosec, frame_id, x, y, (qx, qy, qz, qw)
+
+
 class JointPosition:
     """
     Reads one joint's position (by name) from sensor_msgs/JointState CDR bytes.

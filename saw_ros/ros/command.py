@@ -14,21 +14,20 @@ so a command that arrives during a burst is not held until the burst ends. When 
 for ``command_timeout`` seconds of simulated time, the drive returns to its parameter
 (motor.voltage / conditions.frequency), as cmd_vel consumers stop a robot whose commands stopped;
 0 keeps the last command for ever. A command that is not one finite value inside the parameter's
-range (wrong length, NaN, out of range) is refused, counted, and said in a warning at most once
-per WARN_EVERY seconds of wall time; it is never applied. ``refused`` and ``applied`` count them.
+range (wrong length, NaN, out of range) is refused through the node's ``InputGuard``
+(saw_ros.ros.guard: counted on /diagnostics, said in a warning at most once per WARN_EVERY
+seconds of wall time); it is never applied. ``refused`` and ``applied`` count them.
 """
 from __future__ import annotations
 
-import math
-import time
 from typing import Optional
 
 from saw_ros.core.dynamics import Simulator
 from saw_ros.core.params import ParameterError
 from saw_ros.interface import topics
+from saw_ros.interface.message_checks import Refused
+from saw_ros.ros.guard import InputGuard
 from saw_ros.ros.qos import message_class, profile
-
-WARN_EVERY = 5.0     # s of wall time between two warnings about refused commands
 
 
 class CommandInput:
@@ -37,21 +36,24 @@ class CommandInput:
     def __init__(self, node, sim: Simulator, timeout: float):
         self.node, self.sim, self.timeout = node, sim, timeout
         self.applied = 0
-        self.refused = 0
         self.active = False
         self.last_step: Optional[int] = None     # the sim's step count at the last command
         self.last_value: Optional[float] = None
-        self._refused_unlogged = 0
-        self._last_warning = -math.inf
+        self.guard = InputGuard(node)
         entry = topics.topic(topics.MOTOR_COMMANDS)
         self._type = message_class(entry.type)
+        self._guarded = self.guard.guarded(entry.name, self._on_command)
         self.subscription = node.create_subscription(
-            self._type, entry.name, self._on_command, profile(entry.qos))
+            self._type, entry.name, self._guarded, profile(entry.qos))
         self._take = self.subscription.handle.take_message
         node.get_logger().info(
             f'commands on {entry.name}: ' + ('[motor voltage, V]' if sim.motor_on else
                                              '[helix frequency, Hz] (no motor modelled: '
                                              'motor.voltage = 0)'))
+
+    @property
+    def refused(self) -> int:
+        return self.guard.refused
 
     @property
     def unit(self) -> str:
@@ -63,40 +65,26 @@ class CommandInput:
         # executor's later attempt then finds the queue empty.
         taken = self._take(self._type, False)
         while taken is not None:
-            self._on_command(taken[0])
+            self._guarded(taken[0])
             taken = self._take(self._type, False)
 
     def _on_command(self, msg) -> None:
         values = list(msg.data)
+        if len(values) != 1:
+            raise Refused('mis-sized arrays', f"expected one value (the helix's {self.unit}), "
+                                              f'got {len(values)}')
+        value = float(values[0])
         try:
-            if len(values) != 1:
-                raise ParameterError(f"expected one value (the helix's {self.unit}), got "
-                                     f'{len(values)}')
-            value = float(values[0])
             if self.sim.motor_on:
                 self.sim.command_voltage(value)
             else:
                 self.sim.command_frequency(value)
         except ParameterError as exc:
-            self._refuse(str(exc))
-            return
+            raise Refused('out of range', str(exc)) from None
         self.applied += 1
         self.active = True
         self.last_step = self.sim.steps
         self.last_value = value
-
-    def _refuse(self, reason: str) -> None:
-        self.refused += 1
-        now = time.monotonic()
-        if now - self._last_warning < WARN_EVERY:
-            self._refused_unlogged += 1
-            return
-        more = f' ({self._refused_unlogged} more refused since the last warning)' \
-            if self._refused_unlogged else ''
-        self.node.get_logger().warning(f'command on {topics.MOTOR_COMMANDS} refused, not '
-                                       f'applied: {reason}{more}')
-        self._last_warning = now
-        self._refused_unlogged = 0
 
     def check_timeout(self) -> None:
         """Return the drive to its parameter once commands stopped for ``timeout`` (sim time)."""

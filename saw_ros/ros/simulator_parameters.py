@@ -16,6 +16,8 @@ from rcl_interfaces.srv import GetParameters
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from saw_ros.core.params import Scenario
+from saw_ros.interface.message_checks import Refused
+from saw_ros.ros.guard import InputGuard
 from saw_ros.ros.params import SIMULATOR_EXCLUDED
 
 # Every Scenario name the simulator declares (it replaces integration.duration by its own
@@ -35,15 +37,17 @@ class SimulatorParameters:
     """The values of ``names`` as the simulator node ``simulator`` runs them (module docstring)."""
 
     def __init__(self, node: Node, simulator: str, names: Sequence[str],
-                 on_values: Callable[[Dict[str, Any]], bool]):
+                 on_values: Callable[[Dict[str, Any]], bool], guard: InputGuard):
         self.simulator = simulator.strip('/')
         self.names = list(names)
         self.values: Dict[str, Any] = {}        # the last set on_values accepted
         self._on_values = on_values
         self._client = node.create_client(GetParameters, f'/{self.simulator}/get_parameters')
         self._pending: Optional[Any] = None
-        node.create_subscription(ParameterEvent, '/parameter_events', self._on_event,
-                                 QoSProfile(depth=100))
+        # Any participant can publish a ParameterEvent naming the simulator: on_values checks the
+        # values (a Scenario refuses what the simulator would), the guard what cannot be read.
+        guard.subscribe(ParameterEvent, '/parameter_events', self._on_event,
+                        QoSProfile(depth=100))
 
     @property
     def known(self) -> bool:
@@ -74,9 +78,13 @@ class SimulatorParameters:
             return
         changed = {p.name: value_of(p.value) for p in list(event.changed_parameters)
                    + list(event.new_parameters)}
-        self._update({k: v for k, v in changed.items() if k in self.values})
+        if not self._update({k: v for k, v in changed.items() if k in self.values}):
+            raise Refused('parameters refused', f'{self.simulator} values '
+                          f'{", ".join(sorted(changed))} not taken')
 
-    def _update(self, values: Dict[str, Any]) -> None:
+    def _update(self, values: Dict[str, Any]) -> bool:
         merged = dict(self.values, **values)
-        if self._on_values(merged):
-            self.values = merged
+        if not self._on_values(merged):
+            return False
+        self.values = merged
+        return True

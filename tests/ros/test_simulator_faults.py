@@ -43,7 +43,9 @@ class Client:
                                       QoSProfile(depth=1000,
                                                  reliability=ReliabilityPolicy.RELIABLE))
         self.node.create_subscription(
-            DiagnosticArray, topics.DIAGNOSTICS, lambda m: self.statuses.extend(m.status),
+            # The simulator's own health status (its input guard reports beside it).
+            DiagnosticArray, topics.DIAGNOSTICS,
+            lambda m: self.statuses.extend(s for s in m.status if s.name == 'simulator'),
             QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.client = self.node.create_client(SetParameters, '/simulator/set_parameters')

@@ -213,12 +213,13 @@ def test_camera_refuses_a_cloud_that_is_not_the_walls_and_keeps_running(ros_cont
         assert wait_for(lambda: pub.get_subscription_count() > 0, 10.0, spin=spin)
         for msg in (bad, bad):
             pub.publish(msg)
-        assert wait_for(lambda: camera._walls_refused, 5.0, spin=spin)
+        refused = lambda: camera.guard.counts.get((table.WALLS, 'not a wall shape'), 0)  # noqa
+        assert wait_for(lambda: refused() == 2, 5.0, spin=spin)
         wait_for(lambda: False, 0.2, spin=spin)
         assert camera.received['walls'] == 0 and camera._walls.before(10 ** 10) is None
         pub.publish(good)
         assert wait_for(lambda: camera.received['walls'] == 1, 5.0, spin=spin)
-        assert not camera._walls_refused
+        assert refused() == 2
         shape = camera._walls.before(2_000_000)
         np.testing.assert_allclose(shape.deflection, 1e-3, rtol=1e-6)
     finally:
@@ -227,5 +228,6 @@ def test_camera_refuses_a_cloud_that_is_not_the_walls_and_keeps_running(ros_cont
         for node in (camera, source):
             node.destroy_node()
     err = capfd.readouterr().err
-    assert err.count('ignoring a /saw/walls cloud') == 1 and 'Traceback' not in err, err
+    assert err.count('message on /saw/walls refused, not used: not a wall shape') == 1 and \
+        'Traceback' not in err, err
     assert 'wrong or missing: deflection, surface' in err

@@ -36,11 +36,13 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from saw_ros.core.params import ParameterError, Scenario, spec_entries, spec_meta
+from saw_ros.interface import message_checks as checks
 from saw_ros.interface import topics
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.ros import tf
 from saw_ros.ros.cdr import NS_PER_S
+from saw_ros.ros.guard import InputGuard
 from saw_ros.ros.params import declare_spec, ScenarioParameters, yaml_text
 from saw_ros.ros.qos import (image_publisher_qos, INPUT_DEPTH, message_class, profile,
                              STREAM_QOS, with_depth)
@@ -58,6 +60,8 @@ TRANSPORTS = ('raw', 'compressed', 'both')
 KEEP = 2.0          # s of simulated time kept in the pose and wall-shape buffers
 WALLS_STALE = 0.25  # s after which a wall shape no longer counts (at least 3 publishing periods)
 SIMULATOR_WAIT = 1.0  # s after the inputs matched that readiness waits for the simulator's values
+# frame_id a pose input may carry: the frames the topic table gives the poses in.
+POSE_FRAMES = tuple({topics.topic(topics.POSE).frame, topics.topic(topics.TRACKING_POSE).frame})
 OUTPUT_QUEUE = 120  # rendered frames waiting for the output thread (2 s at 60 fps, 330 MB max)
 
 
@@ -185,7 +189,11 @@ class CameraNode(Node):
         self._poses = StampedSeries(int(KEEP * NS_PER_S))       # (x, y, theta)
         self._phases = StampedSeries(int(KEEP * NS_PER_S))      # (helix phase,)
         self._walls = StampedShapes(int(KEEP * NS_PER_S), int(WALLS_STALE * NS_PER_S))
-        self._walls_refused = False    # the last /saw/walls cloud was refused (warned)
+        # Stamps going back: refused, unless a stream of them follows (a replay restarted).
+        # (A leap of more than the buffers hold is refused the same way: it would have the
+        # camera render every frame up to it.)
+        self._pose_order, self._phase_order = (checks.StampOrder(max_leap=int(KEEP * NS_PER_S))
+                                               for _ in range(2))
         self._next: Optional[int] = None          # index of the next frame
         self.frames = 0
         self.received = {'poses': 0, 'joint_states': 0, 'walls': 0}
@@ -224,22 +232,26 @@ class CameraNode(Node):
         self._pub_tf_static.publish(tf.message([tf.camera_transform(camera, self.frame_id)]))
         self._info_source: Optional[CameraInfo] = None
         self._info_serialized = b''
+        # Every input through the guard: a message the camera cannot draw is refused, counted on
+        # /diagnostics and warned about, and the camera runs on (saw_ros.ros.guard).
+        self.guard = InputGuard(self)
         self._inputs = (
-            self.create_subscription(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
-                                     raw=True),
-            self.create_subscription(JointState, p['joint_states_topic'], self._on_joints_raw,
-                                     in_qos, raw=True))
+            self.guard.subscribe(PoseStamped, p['pose_topic'], self._on_pose_raw, in_qos,
+                                 raw=True),
+            self.guard.subscribe(JointState, p['joint_states_topic'], self._on_joints_raw,
+                                 in_qos, raw=True))
         # The bending walls' shape: optional (rigid walls publish none), so not an input the
         # readiness waits for.
         walls = topics.topic(topics.WALLS)
-        self._walls_sub = self.create_subscription(message_class(walls.type), walls.name,
-                                                   self._on_walls, profile(walls.qos))
+        self._walls_sub = self.guard.subscribe(message_class(walls.type), walls.name,
+                                               self._on_walls, profile(walls.qos))
         # 'inputs matched' once both inputs have a publisher: from then on no input is missed
         # (said ready on /saw/ready: run_pipeline waits for it before letting the simulator start).
         self._readiness = Readiness(self)
         # The robot and gap to draw are the simulator's (saw_ros.ros.simulator_parameters).
         self.simulator_parameters = SimulatorParameters(self, p['simulator_node'],
-                                                        self.params.names, self._draw_simulators)
+                                                        self.params.names, self._draw_simulators,
+                                                        self.guard)
         self._matched_at: Optional[float] = None
         # (A steady clock: with use_sim_time the node's clock stands still until /clock runs.)
         self._match_timer = self.create_timer(0.05, self._report_matched,
@@ -290,8 +302,11 @@ class CameraNode(Node):
         return True
 
     def _on_pose_raw(self, data: bytes) -> None:
-        t, x, y, theta = cdr.pose_stamped_ns(data)
-        self._add_pose(t, x, y, theta)
+        t, frame_id, x, y, q = cdr.pose_stamped(data)
+        checks.frame(frame_id, POSE_FRAMES)
+        checks.pose(x, y, q)
+        self._pose_order.check(t)
+        self._add_pose(t, x, y, 2.0 * math.atan2(q[2], q[3]))
 
     def _add_pose(self, t: int, x: float, y: float, theta: float) -> None:
         self.received['poses'] += 1
@@ -300,7 +315,12 @@ class CameraNode(Node):
         self._render_due()
 
     def _on_joints_raw(self, data: bytes) -> None:
-        self._add_phase(*self._helix(data))
+        t, phase = self._helix(data)
+        if phase is None:
+            raise checks.Refused('no helix position', "no position for the joint 'helix'")
+        checks.finite('helix position', (phase,))
+        self._phase_order.check(t)
+        self._add_phase(t, phase)
 
     def _add_phase(self, t: int, phase) -> None:
         self.received['joint_states'] += 1
@@ -311,16 +331,11 @@ class CameraNode(Node):
         self._render_due()
 
     def _on_walls(self, msg) -> None:
-        """Keep a /saw/walls shape by its stamp; refuse (one warning a streak) what is not one."""
+        """Keep a /saw/walls shape by its stamp; refuse what is not one (the guard warns)."""
         try:
             shape = wall_shape(*conv.walls_of(msg))
         except ValueError as exc:
-            if not self._walls_refused:
-                self._walls_refused = True
-                self.get_logger().warning(f'ignoring a {topics.WALLS} cloud (and the next ones '
-                                          f'until one is right): {exc}')
-            return
-        self._walls_refused = False
+            raise checks.Refused('not a wall shape', str(exc)) from None
         self.received['walls'] += 1
         self._walls.add(conv.stamp_ns(msg.header.stamp), shape)
 

@@ -36,10 +36,12 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from saw_ros.analysis.compare import find_reference, load_reference, reference_error, RunComparator
 from saw_ros.core.params import Scenario, spec_meta
+from saw_ros.interface import message_checks as checks
 from saw_ros.interface import topics
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.ros.cdr import NS_PER_S
+from saw_ros.ros.guard import InputGuard
 from saw_ros.ros.params import declare_spec
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import INPUT_DEPTH, LATCHED_QOS, STREAM_QOS, with_depth
@@ -120,8 +122,13 @@ class ComparisonNode(Node):
         self.comparator = RunComparator(self.scenario.robot, float('nan'),
                                         self.get_parameter('steady_threshold').value)
         # The run's conditions, from the simulator (saw_ros.ros.simulator_parameters).
+        # Every input through the guard: a pose that is not finite, in another frame or stamped
+        # back (a single one; a replay's restart is a stream of them) is refused, counted on
+        # /diagnostics and warned about, and never reaches the comparator.
+        self.guard = InputGuard(self)
         self.simulator_parameters = SimulatorParameters(
-            self, self.get_parameter('simulator_node').value, SCENARIO_NAMES, self._apply)
+            self, self.get_parameter('simulator_node').value, SCENARIO_NAMES, self._apply,
+            self.guard)
         self.simulator = self.simulator_parameters.simulator
         self.final_sent = False
         self.done = False
@@ -129,8 +136,10 @@ class ComparisonNode(Node):
         self._last_truth_wall = None
         self._last_truth_ns = None       # stamp of the latest pose
         self.publisher = self.create_publisher(DiagnosticArray, topics.COMPARISON, LATCHED_QOS)
-        self._truth_sub = self.create_subscription(PoseStamped, topics.POSE, self._on_truth,
-                                                   with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
+        self._truth_order = checks.StampOrder()
+        self._tracked_order = checks.StampOrder()
+        self._truth_sub = self.guard.subscribe(PoseStamped, topics.POSE, self._on_truth,
+                                               with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
         # The helix's angle from /saw/joint_states, followed only while a motor drives it (its
         # cycles are then helix turns, docs/motor.md); a constant helix needs no 1 kHz topic.
         self._helix = cdr.JointPosition('helix')
@@ -139,8 +148,7 @@ class ComparisonNode(Node):
         # (run_pipeline waits for it).
         self._readiness = Readiness(self)
         self._match_timer = self.create_timer(0.05, self._report_matched, clock=self._wall)
-        self.create_subscription(PoseStamped, topics.TRACKING_POSE, self._on_tracked,
-                                 TRACK_QOS)
+        self.guard.subscribe(PoseStamped, topics.TRACKING_POSE, self._on_tracked, TRACK_QOS)
         self.create_timer(self.get_parameter('report_period').value, self._tick,
                           clock=self._wall)
 
@@ -166,7 +174,7 @@ class ComparisonNode(Node):
 
     def _follow_helix(self, on: bool) -> None:
         if on and self._helix_sub is None:
-            self._helix_sub = self.create_subscription(
+            self._helix_sub = self.guard.subscribe(
                 JointState, topics.JOINT_STATES, self._on_helix,
                 with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
         elif not on and self._helix_sub is not None:
@@ -183,9 +191,12 @@ class ComparisonNode(Node):
             self.destroy_timer(self._match_timer)
 
     def _on_truth(self, data: bytes):
-        t_ns, x, _y, _theta = cdr.pose_stamped_ns(data)
+        t_ns, frame_id, x, y, q = cdr.pose_stamped(data)
+        checks.frame(frame_id, (topics.topic(topics.POSE).frame,))
+        checks.pose(x, y, q)
+        self._truth_order.check(t_ns)
         t = t_ns / NS_PER_S
-        if self._last_truth_ns is not None and t_ns < self._last_truth_ns:
+        if self._truth_order.restarted:
             self.get_logger().warning(
                 f'simulated time went back from {self._last_truth_ns / NS_PER_S:.3f} s to '
                 f'{t:.3f} s (a replay restarted?): comparison restarted')
@@ -195,12 +206,18 @@ class ComparisonNode(Node):
 
     def _on_helix(self, data: bytes):
         t_ns, angle = self._helix(data)
-        if angle is not None:
-            self.comparator.add_helix(t_ns / NS_PER_S, angle)
+        if angle is None:
+            raise checks.Refused('no helix position', "no position for the joint 'helix'")
+        checks.finite('helix position', (angle,))
+        self.comparator.add_helix(t_ns / NS_PER_S, angle)
 
     def _on_tracked(self, msg: PoseStamped):
-        self.comparator.add_tracked(conv.stamp_ns(msg.header.stamp) / NS_PER_S,
-                                    msg.pose.position.x)
+        checks.frame(msg.header.frame_id, (topics.topic(topics.TRACKING_POSE).frame,))
+        o, p = msg.pose.orientation, msg.pose.position
+        checks.pose(p.x, p.y, (o.x, o.y, o.z, o.w))
+        t_ns = conv.stamp_ns(msg.header.stamp)
+        self._tracked_order.check(t_ns)
+        self.comparator.add_tracked(t_ns / NS_PER_S, p.x)
 
     # -- reports -----------------------------------------------------------------------------
     def _tick(self):

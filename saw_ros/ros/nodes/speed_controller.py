@@ -27,8 +27,10 @@ from rclpy.node import Node
 from saw_ros.core.drive import CONTROLLER_PARAMETERS as PARAMETERS, SpeedPI
 from saw_ros.core.kinematics import v_theory
 from saw_ros.core.params import Scenario
+from saw_ros.interface import message_checks as checks
 from saw_ros.interface import topics
 from saw_ros.ros.cdr import NS_PER_S
+from saw_ros.ros.guard import InputGuard
 from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.ros.qos import INPUT_DEPTH, message_class, profile, publisher_profile, with_depth
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
@@ -76,16 +78,19 @@ class SpeedControllerNode(Node):
         self._command_type = message_class(entry.type)
         self.publisher = self.create_publisher(self._command_type, entry.name,
                                                publisher_profile(entry.qos))
+        # The feedback through the guard: a speed that is not finite, arrays that do not match,
+        # a stamp that goes back are refused, counted on /diagnostics and warned about.
+        self.guard = InputGuard(self)
+        self._order = checks.StampOrder()
         if self.feedback == 'tracking':
             source = topics.topic(topics.TRACKING_TWIST_SMOOTHED)
-            self.create_subscription(TwistStamped, source.name, self._on_twist,
-                                     profile(source.qos))
+            self.guard.subscribe(TwistStamped, source.name, self._on_twist, profile(source.qos))
         elif self.feedback == 'ground_truth':
-            self.create_subscription(TwistStamped, topics.TWIST, self._on_twist,
-                                     with_depth(profile('stream'), INPUT_DEPTH))
+            self.guard.subscribe(TwistStamped, topics.TWIST, self._on_twist,
+                                 with_depth(profile('stream'), INPUT_DEPTH))
         else:
-            self.create_subscription(JointState, topics.JOINT_STATES, self._on_joints,
-                                     with_depth(profile('stream'), INPUT_DEPTH))
+            self.guard.subscribe(JointState, topics.JOINT_STATES, self._on_joints,
+                                 with_depth(profile('stream'), INPUT_DEPTH))
         self.get_logger().info(f'holding {self.target:g} m/s on {self.feedback} feedback, '
                                f'commanding {p["voltage_min"]:g}-{p["voltage_max"]:g} V on '
                                f'{entry.name}')
@@ -115,19 +120,32 @@ class SpeedControllerNode(Node):
 
     def _on_twist(self, msg: TwistStamped) -> None:
         ns = self._stamp_ns(msg)
+        checks.finite('linear.x', (msg.twist.linear.x,))
+        self._check_stamp(ns)
         if self._due(ns):
             self._update(float(msg.twist.linear.x), ns)
 
     def _on_joints(self, msg: JointState) -> None:
         ns = self._stamp_ns(msg)
-        if not msg.velocity or not self._due(ns):
+        names = list(msg.name)
+        checks.joint_arrays(len(names), len(msg.position), len(msg.velocity), len(msg.effort))
+        if 'helix' not in names or not msg.velocity:
+            raise checks.Refused('no helix velocity', "no velocity for the joint 'helix'")
+        velocity = float(msg.velocity[names.index('helix')])
+        checks.finite('helix velocity', (velocity,))
+        self._check_stamp(ns)
+        if not self._due(ns):
             return
-        helix_hz = float(msg.velocity[0]) / (2.0 * math.pi)
-        self._update(self.advance_ratio * v_theory(self.robot, helix_hz), ns)
+        self._update(self.advance_ratio * v_theory(self.robot, velocity / (2.0 * math.pi)), ns)
+
+    def _check_stamp(self, ns: int) -> None:
+        """Refuse a stray stamp that goes back; a replay's restart starts the control anew."""
+        self._order.check(ns)
+        if self._order.restarted:
+            self.last_ns = None
 
     def _update(self, speed: float, ns: int) -> None:
-        if not math.isfinite(speed):
-            return
+        checks.finite('speed', (speed,))     # e.g. v_theory of a finite but huge helix speed
         dt = (ns - self.last_ns) / NS_PER_S if self.last_ns is not None else 0.0
         if self.last_ns is not None and dt <= 0.0:
             return                          # an old or repeated sample (a replay, a reset)

@@ -39,11 +39,13 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from saw_ros.core.params import spec_entries, spec_meta
 from saw_ros.interface import frames, scene_markers, topics
+from saw_ros.interface import message_checks as checks
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.ros import markers
 from saw_ros.ros import tf
 from saw_ros.ros.cdr import NS_PER_S
+from saw_ros.ros.guard import InputGuard
 from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, publisher_profile, with_depth
 from saw_ros.ros.ready import Readiness
@@ -79,6 +81,10 @@ PARAMETERS = (
                                         'CameraInfo', 0.0, None)),
     ('plane_distance', 1.0, spec_meta('m', 'camera to the plane of motion (with CameraInfo: '
                                            'px/m = fx / this)', 0.0, None, low_open=True)),
+    ('max_image_pixels', 4096 * 4096,
+     spec_meta('', 'largest image taken, width x height (a CompressedImage: as its JPEG or PNG '
+                   'header declares it, and at most 3 bytes a pixel); larger ones are refused '
+                   'from the header, before decoding', 1, None)),
     *spec_entries(CameraModel, CAMERA_FIELDS),
     ('slope_from_motion', False,
      spec_meta('', "true: the track's direction is the markers' own motion (footage whose slope "
@@ -120,6 +126,7 @@ class VisionNode(Node):
         except (ParameterException, ValueError, TypeError) as exc:
             raise NodeFailure(f'invalid parameters: {exc}') from exc
         self.p = p
+        self.max_pixels = int(p['max_image_pixels'])
         self.pose_kw = {'slope': float(p['slope']), 'center_x': float(p['center_x']),
                         'center_y': float(p['center_y']), 'mirror': bool(p['mirror'])}
         self.tracker = None
@@ -141,17 +148,21 @@ class VisionNode(Node):
         # Raw: the 2.7 MB pixels are read in place (cdr.ImageView) instead of being converted
         # to a Python array and copied again.
         image_qos = with_depth(IMAGE_QOS, IMAGE_PUBLISHER_DEPTH)
+        # Every input through the guard: an image or camera info the tracker cannot take is
+        # refused, counted on /diagnostics and warned about, and the node runs on.
+        self.guard = InputGuard(self)
+        self._image_order = checks.StampOrder()
         if p['image_transport'] == 'compressed':
             self.image_topic = compressed.compressed_topic(p['image_topic'])
-            self.create_subscription(CompressedImage, self.image_topic, self._on_image,
-                                     image_qos)
+            self.guard.subscribe(CompressedImage, self.image_topic, self._on_compressed,
+                                 image_qos)
         else:
             self.image_topic = p['image_topic']
-            self.create_subscription(Image, self.image_topic, self._on_image_raw, image_qos,
-                                     raw=True)
+            self.guard.subscribe(Image, self.image_topic, self._on_image_raw, image_qos,
+                                 raw=True)
         if not p['px_per_m'] > 0:
-            self.create_subscription(CameraInfo, p['camera_info_topic'], self._on_info_raw,
-                                     IMAGE_QOS, raw=True)
+            self.guard.subscribe(CameraInfo, p['camera_info_topic'], self._on_info_raw,
+                                 IMAGE_QOS, raw=True)
         self._info_unchanged = None     # the last CameraInfo's bytes after its stamp
         self.get_logger().info(f'tracking the markers in {self.image_topic}')
         self._readiness = Readiness(self)
@@ -176,18 +187,15 @@ class VisionNode(Node):
         try:
             msg = deserialize_message(data, CameraInfo)
         except Exception as exc:  # noqa: BLE001  (rclpy raises several types for bad CDR)
-            self.get_logger().error(f'malformed camera info: {exc}', throttle_duration_sec=5.0)
-            return
-        self._info_unchanged = after_stamp
+            raise checks.Refused('unreadable', f'malformed camera info: {exc}') from None
         self._on_info(msg)
+        self._info_unchanged = after_stamp
 
     def _on_info(self, msg: CameraInfo) -> None:
         first = self.info is None
         if not first and list(msg.k) == list(self.info.k):
             return
-        if not msg.k[0] > 0:
-            self.get_logger().warning('camera info without a focal length ignored')
-            return
+        checks.camera_matrix(list(msg.k), msg.width, msg.height, self.max_pixels)
         moved = not first and list(msg.k[:2]) + list(msg.k[3:5]) == \
             list(self.info.k[:2]) + list(self.info.k[3:5]) and self.tracker is not None
         self.info = msg
@@ -199,29 +207,36 @@ class VisionNode(Node):
         elif not first:
             self.get_logger().info('camera intrinsics changed: tracker restarted')
             self.tracker = None
+        on_image = self.guard.guarded(self.image_topic, self._on_image)
         while self._pending:
-            self._on_image(self._pending.popleft())
+            on_image(self._pending.popleft())
 
     def _on_image_raw(self, data: bytes) -> None:
         try:
             view = cdr.ImageView(data)
         except (ValueError, struct.error, UnicodeDecodeError) as exc:
-            self.get_logger().error(f'malformed image message: {exc}', throttle_duration_sec=5.0)
-            return
+            raise checks.Refused('unreadable', f'malformed image message: {exc}') from None
+        checks.image_header(view.width, view.height, view.encoding, view.step, len(view.data),
+                            images.ENCODINGS, self.max_pixels)
         self._on_image(view)
+
+    def _on_compressed(self, msg: CompressedImage) -> None:
+        # A compressed image is no bigger than its pixels (3 bytes each, bgr8).
+        checks.compressed_image(msg.format, msg.data, self.max_pixels, 3 * self.max_pixels)
+        self._on_image(msg)
 
     def _on_image(self, msg) -> None:
         """One image: a sensor_msgs/Image, a cdr.ImageView or a sensor_msgs/CompressedImage."""
         if self.info is None and not self.p['px_per_m'] > 0:
             self._pending.append(msg)
             return
+        t_ns = msg.stamp_ns if isinstance(msg, cdr.ImageView) else conv.stamp_ns(
+            msg.header.stamp)
+        self._image_order.check(t_ns)
         try:
             image, encoding = images.decode(msg)
         except ValueError as exc:
-            self.get_logger().error(str(exc), throttle_duration_sec=5.0)
-            return
-        t_ns = msg.stamp_ns if isinstance(msg, cdr.ImageView) else conv.stamp_ns(
-            msg.header.stamp)
+            raise checks.Refused('undecodable', str(exc)) from None
         h, w = image.shape[:2]
         if self.tracker is None or (self.tracker.camera.width, self.tracker.camera.height) != (
                 w, h) or self.tracker.encoding != encoding:
