@@ -245,8 +245,9 @@ settle, then {len(steady(run, run.bottom)) * run.dt:g} s measured) gives every t
 into the rigid walls at every step. Flexure links (core.flexure, {LINK_MASS * 1000:g} g each)
 are driven through them with the simulator's contact law, hysteresis included, and what the
 backbone feels replaces the tips' loads in the body's normal force; the body is shifted
-towards the bottom wall until the links carry the rigid run's mean load again ("settles"). The rigid links replayed this way give
-the run's own vibration back (to {100 * abs(check):.1e} %).
+towards the bottom wall until the links carry the rigid run's mean load again ("settles").
+The rigid links replayed this way give the run's own vibration back (to
+{100 * abs(check):.1e} %).
 
 **Open loop**: the body's motion is the rigid run's. What the body does with the changed
 forces, and the speed the flexures cost, need the flexures coupled into the compiled step
