@@ -152,3 +152,36 @@ def test_vision_node_takes_the_region_and_the_markers_known_size(ros_context):
         given.destroy_node()
     with pytest.raises(NodeFailure, match='roi'):
         VisionNode(context=ros_context, parameter_overrides=[Parameter('roi', value=[5, 5, 1])])
+
+
+def test_vision_node_measures_on_the_calibrated_plane(ros_context):
+    """plane_homography and CameraInfo's D (as ROS cameras publish them) make the node's camera."""
+    import numpy as np
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import CameraInfo
+
+    from saw_ros.ros.nodes.vision import VisionNode
+    from saw_ros.ros.runtime import NodeFailure
+    from saw_ros.vision.footage import Shot
+    shot = Shot(width=960, height=540, scale=900.0, yaw_deg=18.0, pitch_deg=10.0,
+                dist_coeffs=(-0.12, 0.0, 0.0, 0.0))
+    node = VisionNode(context=ros_context, parameter_overrides=[
+        Parameter('plane_homography', value=[float(v) for v in shot.plane().ravel()]),
+        Parameter('center_x', value=0.0), Parameter('center_y', value=shot.track_y)])
+    try:
+        info = CameraInfo(width=960, height=540, distortion_model='plumb_bob')
+        info.k = [float(v) for v in shot.lens().K.ravel()]
+        info.d = [-0.12, 0.0, 0.0, 0.0, 0.0]
+        node._on_info(info)
+        camera = node._camera(960, 540)
+        truth = shot.calibrated_camera()
+        points = np.array([0.1 + 0.03j, -0.25 + 0.02j])
+        # a surface point -> where the lens puts it in the picture, and back
+        image = truth.distort(truth.to_pixels(points))
+        np.testing.assert_allclose(camera.to_surface(camera.undistort(image)), points,
+                                   atol=1e-6)
+    finally:
+        node.destroy_node()
+    with pytest.raises(NodeFailure, match='plane_homography'):
+        VisionNode(context=ros_context, parameter_overrides=[
+            Parameter('plane_homography', value=[1.0, 2.0, 3.0, 2.0, 4.0, 6.0, 0.0, 0.0, 0.0])])
