@@ -304,12 +304,14 @@ def check_params_file(path: str) -> None:
     from saw_ros.core.params import ParameterError
     # launch_ros writes a list parameter as a tuple (``!!python/tuple``), which rcl reads as a
     # list: so does this check (safe_load refused `ros2 launch`'s recorder topics).
-    loader = type('ParamsLoader', (yaml.SafeLoader,), {})
-    loader.add_constructor('tag:yaml.org,2002:python/tuple',
-                           lambda load, node: load.construct_sequence(node))
+    class ParamsLoader(yaml.SafeLoader):
+        """SafeLoader, and a !!python/tuple read as a list."""
+
+    ParamsLoader.add_constructor('tag:yaml.org,2002:python/tuple',
+                                 lambda load, node: load.construct_sequence(node))
     try:
         with open(path, encoding='utf-8') as f:
-            doc = yaml.load(f, Loader=loader)     # noqa: S506 (a SafeLoader, one tag more)
+            doc = yaml.load(f, Loader=ParamsLoader)     # noqa: S506 (safe, one tag more)
     except FileNotFoundError:
         raise ParameterError(f'params file {path} does not exist') from None
     except OSError as exc:
