@@ -280,13 +280,13 @@ def set_bad_parameters(probe, process):
     client = probe.node.create_client(SetParameters, f'/{process}/set_parameters')
     reasons = []
     try:
-        assert wait_for(client.service_is_ready, 10.0, spin=probe.spin), process
+        assert wait_for(client.service_is_ready, 30.0, spin=probe.spin), process
         for value in (ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='fast'),
                       ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
                                      double_value=math.nan)):
             future = client.call_async(SetParameters.Request(
                 parameters=[Parameter(name=name, value=value)]))
-            assert wait_for(future.done, 10.0, spin=probe.spin), (process, name)
+            assert wait_for(future.done, 30.0, spin=probe.spin), (process, name)
             result = future.result().results[0]
             assert not result.successful, (process, name, value)
             reasons.append(result.reason)
@@ -354,7 +354,7 @@ def test_every_node_survives_every_hostile_message(graph, capsys):
     for name, readers in targets.items():
         # Every reader matched first (a message sent before it is lost to it).
         assert wait_for(lambda: probe.publishers[name].get_subscription_count() >= len(readers),
-                        10.0, spin=probe.spin), (name, readers, {
+                        30.0, spin=probe.spin), (name, readers, {
                             n: p.get_subscription_count() for n, p in probe.publishers.items()},
                             [(i.node_name, i.qos_profile) for i in
                              probe.node.get_subscriptions_info_by_topic(name)])
