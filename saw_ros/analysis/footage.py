@@ -43,7 +43,7 @@ from saw_ros.core.metrics import run_frequency, run_turns
 from saw_ros.vision.camera import FPS
 
 MANIFEST_COLUMNS = ('video', 'slope_deg', 'voltage_V', 'frequency_hz', 'px_per_m',
-                    'marker_spacing_m', 'fps', 'notes')
+                    'marker_spacing_m', 'fps', 'notes', 'camera_calibration', 'plane')
 TARGET_COLUMNS = ('video', 'slope_deg', 'voltage_V', 'frequency_hz', 'v_measured',
                   'ar_measured', 'window_s', 'v_theory', 'v_sim', 'ar_sim', 'relative_error',
                   'frames', 'frames_ok', 'px_per_m', 'scale_from', 'notes')
@@ -67,6 +67,8 @@ class FootageRun:
     marker_spacing: Optional[float] = None
     notes: str = ''
     fps: float = 0.0           # frames per second: a folder of frames needs it; 0 = the file's
+    camera_calibration: Optional[Path] = None   # the lens (ROS camera calibration YAML)
+    plane: Optional[Path] = None                # the plane of motion (calibrate-camera's)
 
     def scenario(self, base: Scenario) -> Scenario:
         values = {'conditions.slope': math.radians(self.slope_deg)}
@@ -123,9 +125,15 @@ def _row(path: Path, line: int, row: Dict[str, str]) -> FootageRun:
     slope = number('slope_deg', positive=False)
     if slope is None or abs(slope) > 90:
         raise ManifestError(f'{where}: slope_deg must be given, in [-90, 90]')
+    files = {}
+    for name in ('camera_calibration', 'plane'):
+        if row.get(name):
+            files[name] = path.parent / row[name]
+            if not files[name].is_file():
+                raise ManifestError(f'{where}: {name}: no such file: {files[name]}')
     run = FootageRun(path.parent / row['video'], slope, number('voltage_V'),
                      number('frequency_hz'), number('px_per_m'), number('marker_spacing_m'),
-                     row.get('notes', ''), number('fps') or 0.0)
+                     row.get('notes', ''), number('fps') or 0.0, **files)
     if run.video.is_dir():
         if not run.fps:
             raise ManifestError(f'{where}: {run.video} is a folder of frames: give its fps')
@@ -133,8 +141,10 @@ def _row(path: Path, line: int, row: Dict[str, str]) -> FootageRun:
         raise ManifestError(f'{where}: no such video file or folder of frames: {run.video}')
     if (run.voltage is None) == (run.frequency is None):
         raise ManifestError(f'{where}: give one of voltage_V and frequency_hz')
-    if run.px_per_m is None and run.marker_spacing is None:
-        raise ManifestError(f'{where}: give the scale: px_per_m or marker_spacing_m')
+    if run.plane is not None and run.px_per_m is not None:
+        raise ManifestError(f'{where}: px_per_m and plane both set the scale: give one')
+    if run.px_per_m is None and run.marker_spacing is None and run.plane is None:
+        raise ManifestError(f'{where}: give the scale: px_per_m, marker_spacing_m or plane')
     return run
 
 
@@ -143,7 +153,7 @@ def _row(path: Path, line: int, row: Dict[str, str]) -> FootageRun:
 class Measured:
     results: list                   # the tracker's FrameResults, every frame
     px_per_m: float
-    scale_from: str                 # 'px_per_m' or 'marker_spacing'
+    scale_from: str                 # 'px_per_m', 'marker_spacing' or 'plane'
     speed: float                    # m/s, NaN without enough ok frames
     window: float                   # s the speed was measured over
     frames: int
@@ -175,20 +185,35 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
     """
     import dataclasses
 
-    from saw_ros.vision.offline import measure_scale, track_video
+    from saw_ros.vision import calibration
+    from saw_ros.vision.camera import CameraModel
+    from saw_ros.vision.offline import measure_plane, open_source, track_video
     from saw_ros.vision.tracker import TrackerConfig
     config = config or TrackerConfig()
     if run.marker_spacing is not None:
         config = dataclasses.replace(config, marker_spacing=run.marker_spacing)
     camera_kw = {'slope': math.radians(run.slope_deg), 'center_x': center_x}
-    if run.px_per_m is not None:
+    try:
+        if run.camera_calibration is not None:
+            camera_kw.update(calibration.read_lens(run.camera_calibration).camera_kw())
+        if run.plane is not None:
+            camera_kw['plane'] = tuple(calibration.read_plane(run.plane).ravel())
+    except calibration.CalibrationError as exc:
+        raise ManifestError(f'{run.video}: {exc}') from None
+    if run.plane is not None:
+        width, height = open_source(run.video, run.fps).size
+        scale = CameraModel(width=width, height=height, **camera_kw).scale
+        source = 'plane'
+    elif run.px_per_m is not None:
         scale, source = run.px_per_m, 'px_per_m'
     else:
-        found = measure_scale(run.video, camera_kw, config, config.marker_spacing, run.fps)
+        # the scale where the robot is: a perspective along the track is measured too
+        found = measure_plane(run.video, camera_kw, config, config.marker_spacing, run.fps)
         if found is None:
             raise ManifestError(f'{run.video}: the marker spacing could not be measured (no '
                                 f'frame with both markers told apart): give px_per_m')
-        scale, source = found[0], 'marker_spacing'
+        scale, source = found.scale, 'marker_spacing'
+        camera_kw = found.camera_kw(camera_kw)
     results, tracker = track_video(run.video, dict(camera_kw, scale=scale), config, run.fps)
     ok = [r for r in results if r.ok]
     speed, window = clip_speed([r.t for r in ok], [r.position.real for r in ok], frequency)

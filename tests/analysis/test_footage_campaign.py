@@ -86,3 +86,37 @@ def test_a_folder_of_frames_is_footage_as_its_video_is(tmp_path, capsys):
     manifest.write_text(header + 'level_frames,0,6,600,\n')
     with pytest.raises(ManifestError, match='row 2.*folder of frames.*fps'):
         load_manifest(manifest)
+
+
+def test_a_calibrated_camera_in_the_manifest(tmp_path):
+    """camera_calibration and plane columns: a clip filmed at yaw 18 deg measures its speed."""
+    import cv2
+    import numpy as np
+
+    from saw_ros.analysis.footage import measure
+    from saw_ros.vision import calibration
+    from saw_ros.vision.footage import Shot
+    from saw_ros.vision.tracker import TrackerConfig
+    shot = Shot(duration=2.5, fps=30.0, width=640, height=360, scale=600.0, yaw_deg=18.0,
+                pitch_deg=10.0, dist_coeffs=(-0.12, 0.0, 0.0, 0.0), quality=90)
+    (tmp_path / 'run').mkdir()
+    for k, _, frame in shot.frames():
+        cv2.imwrite(str(tmp_path / 'run' / f'{k:03d}.png'), frame)
+    lens = shot.lens()
+    calibration.write_lens(tmp_path / 'camera.yaml', calibration.Lens(
+        640, 360, lens.K, np.array([-0.12, 0.0, 0.0, 0.0, 0.0])), 'the generator')
+    calibration.write_plane(tmp_path / 'plane.yaml', shot.plane(), 0.0, 'the generator')
+    manifest = tmp_path / 'm.csv'
+    manifest.write_text('video,slope_deg,frequency_hz,fps,camera_calibration,plane\n'
+                        'run,0,1.5,30,camera.yaml,plane.yaml\n')
+    run, = load_manifest(manifest)
+    m = measure(run, 1.5, TrackerConfig())
+    assert m.scale_from == 'plane'
+    assert m.speed == pytest.approx(shot.mean_speed(), rel=0.01)
+    manifest.write_text('video,slope_deg,frequency_hz,fps,px_per_m,plane\n'
+                        'run,0,1.5,30,600,plane.yaml\n')
+    with pytest.raises(ManifestError, match='px_per_m and plane both set the scale'):
+        load_manifest(manifest)
+    manifest.write_text('video,slope_deg,frequency_hz,fps,plane\nrun,0,1.5,30,none.yaml\n')
+    with pytest.raises(ManifestError, match='plane: no such file'):
+        load_manifest(manifest)

@@ -63,8 +63,10 @@ def add_arguments(p):
     p.add_argument('--videos', type=Path, default=None, metavar='MANIFEST.csv',
                    help='recorded runs instead of the virtual camera: a CSV with columns video '
                    '(a file, or a folder of frame images with its fps), slope_deg, voltage_V or '
-                   'frequency_hz, px_per_m or marker_spacing_m, fps, notes (paths relative to '
-                   'it); --slopes/--voltages/--reference do not apply')
+                   'frequency_hz, px_per_m or marker_spacing_m, fps, notes, and for a camera '
+                   'not square to the robot camera_calibration and plane (saw-ros '
+                   "calibrate-camera's files; paths relative to it); --slopes/--voltages/"
+                   '--reference do not apply')
     p.add_argument('--reference', type=Path, default=None,
                    help="CSV of measured speeds/ARs (default: the paper's stated points)")
     add_pool_arguments(p)
