@@ -32,6 +32,8 @@ from saw_ros.core import stability
 from saw_ros.core.contact import ContactLaw, ContactState, NORMAL, OFFSET_X, OFFSET_Y, Param
 from saw_ros.core.contact import PENETRATION, press_tips, SEEN, TANGENTIAL, X
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
+from saw_ros.core.flexure import flex_advance, flex_links, flex_restore, FLEX_ON, FLEX_ROWS
+from saw_ros.core.flexure import flexure_constants
 from saw_ros.core.jit import CACHE
 from saw_ros.core.kinematics import check_no_interference, place_tips, TipRateTable, TipTable
 from saw_ros.core.kinematics import turned_table_value
@@ -159,10 +161,14 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
                      side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                      harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
                      motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-                     wall_state: np.ndarray, body: np.ndarray, tips: np.ndarray,
-                     trace: np.ndarray, trace_tips: np.ndarray) -> None:
+                     wall_state: np.ndarray, flex: np.ndarray, flex_state: np.ndarray,
+                     body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
+                     trace_tips: np.ndarray) -> None:
     """
     Advance scenario ``s`` by ``steps`` steps: tips, walls, contact law, body, helix (kernel).
+
+    With link flexures (core.flexure, ``flex[s]`` on): the links' deflections enter the depths
+    the law sees, and the body gets the flexures' reactions.
 
     Records the state into ``trace`` (and the tips' forces into ``trace_tips`` when it has
     rows) after every step whose number since the run's start (``first`` + k) is a multiple of
@@ -171,6 +177,8 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
     """
     b, c, t, wc = body[s], constants[s], tips[s], walls[s]
     bending = wc[ACTIVE] > 0.0
+    fc, fs = flex[s], flex_state[s]
+    flexing = fc[FLEX_ON] > 0.0
     n = tips.shape[2] // 2
     work = np.empty((WORK_ROWS + 2 * n, n)) if bending else np.empty((0, 0))
     b[STATUS] = 0.0
@@ -178,8 +186,14 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
         place_tips(table, scale, side, b, b[PHASE], c[GAP], t)
         if bending:
             bend_walls(law[s], wc, wall_state[s], t, work)
+        if flexing:
+            flex_links(law[s], fc, fs, t)
         press_tips(law[s], t)
+        if flexing:
+            flex_advance(fc, fs, t)
         status = move_body(dt, side, rates, scale, harmonics, drive[s], motor[s], c, b, t)
+        if flexing:
+            flex_restore(fs, t)
         # A wall that gives way by more than the gap is no longer a wall of the channel.
         if status == 0 and bending and wc[LARGEST] > c[GAP]:
             status = DIVERGED
@@ -205,13 +219,13 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
 def advance(steps: int, first: int, every: int, dt: float, scale: float, side: np.ndarray,
             table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray, drive: np.ndarray,
             law: np.ndarray, motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-            wall_state: np.ndarray, body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
-            trace_tips: np.ndarray) -> None:
+            wall_state: np.ndarray, flex: np.ndarray, flex_state: np.ndarray, body: np.ndarray,
+            tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
     """Advance every scenario by ``steps`` (``advance_scenario``), one after the other."""
     for s in range(body.shape[0]):
         advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
-                         drive, law, motor, constants, walls, wall_state, body, tips, trace,
-                         trace_tips)
+                         drive, law, motor, constants, walls, wall_state, flex, flex_state,
+                         body, tips, trace, trace_tips)
 
 
 @numba.njit(cache=CACHE, parallel=True)
@@ -219,13 +233,14 @@ def advance_in_parallel(steps: int, first: int, every: int, dt: float, scale: fl
                         side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                         harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
                         motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-                        wall_state: np.ndarray, body: np.ndarray, tips: np.ndarray,
-                        trace: np.ndarray, trace_tips: np.ndarray) -> None:
+                        wall_state: np.ndarray, flex: np.ndarray, flex_state: np.ndarray,
+                        body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
+                        trace_tips: np.ndarray) -> None:
     """``advance`` with the scenarios spread over the cores (numba's prange)."""
     for s in numba.prange(body.shape[0]):
         advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
-                         drive, law, motor, constants, walls, wall_state, body, tips, trace,
-                         trace_tips)
+                         drive, law, motor, constants, walls, wall_state, flex, flex_state,
+                         body, tips, trace, trace_tips)
 
 
 class DivergenceError(RuntimeError):
@@ -372,6 +387,15 @@ class Simulator:
         else:
             self._walls = np.zeros((self.count, WALL_FIELDS))
             self._wall_state = np.zeros((self.count, WALL_ROWS, 2, self.table.count // 2))
+        # Link flexures (core.flexure, docs/compliant_robot.md); their state lives on across
+        # new parameters, as the body's does.
+        self._flex = flexure_constants([s.flexure for s in scenarios], self.dt)
+        if not hasattr(self, '_flex_state'):
+            self._flex_state = np.zeros((self.count, FLEX_ROWS, self.table.count // 2))
+        if self.walls is not None and (self._flex[:, FLEX_ON] > 0.0).any():
+            raise ParameterError('flexure.stiffness > 0 with bending walls (surface.'
+                                 'foundation_stiffness > 0): the flexures are not yet coupled '
+                                 "into the walls' solve; use rigid walls or rigid links")
         gap = np.array([[s.conditions.gap] for s in scenarios])
         self._gap = gap[:, 0]
         side = self.table.side
@@ -412,6 +436,7 @@ class Simulator:
         self.body[:, FX:MZ + 1] = 0.0
         self.body[:, STATUS:] = 0.0
         self.contacts.reset()
+        self._flex_state[:] = 0.0
         if self.walls is not None:
             self.walls.reset()
 
@@ -553,7 +578,8 @@ class Simulator:
     def _kernel_arguments(self) -> Tuple[Any, ...]:
         return (self.dt, self.table.scale, self._side, self.table.stacked, self._rates,
                 self._harmonics, self._drive, self._law_rows, self._motor_rows, self.constants,
-                self._walls, self._wall_state, self.body, self.tips)
+                self._walls, self._wall_state, self._flex, self._flex_state, self.body,
+                self.tips)
 
     def step(self) -> None:
         """One semi-implicit Euler step of every scenario (one kernel call)."""

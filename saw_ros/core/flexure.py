@@ -32,10 +32,11 @@ Euler applies the step-end contact forces over the step, and so does the reactio
 from __future__ import annotations
 
 import math
-from typing import Tuple
+from typing import Sequence, Tuple
 
 import numpy as np
 
+from saw_ros.core.contact import DEPTH, EXPONENT, KN_HALF, KN_MEAN, KN_RATE, NORMAL, SEEN
 from saw_ros.core.dynamic_walls import compiled, mode_propagator, oscillator_step
 from saw_ros.core.params import FlexureParams, SurfaceParams
 
@@ -150,52 +151,140 @@ def _law(depth: float, before: float, law: np.ndarray) -> Tuple[float, float]:
 
 
 @compiled
+def balance_link(bottom: float, top: float, before_bottom: float, before_top: float,
+                 free: float, compliance: float, law: np.ndarray) -> Tuple[float, float, float]:
+    """
+    Return one link's deflection e and its tips' loads (F_bottom, F_top) at the step's end.
+
+    ``bottom``, ``top``: the tips' depths into their walls at the link's target (m, > 0
+    inside); the link at e presses its bottom tip bottom - e deep and its top tip top + e;
+    e = free + C (F_bottom - F_top), F the contact law ``law`` (``contact_law``) after the last
+    step's depths. The law rises with the depth, so the right-hand side falls as e rises: the
+    root is single and bracketed by free and its first image. Newton inside the bracket,
+    bisection when a step would leave it (the law's kinks: contact, the hysteresis band's ends).
+    """
+    e = free
+    fb, sb = _law(bottom - e, before_bottom, law)
+    ft, st = _law(top + e, before_top, law)
+    image = free + compliance * (fb - ft)
+    low, high = min(e, image), max(e, image)
+    for iteration in range(MAX_ITERATIONS):
+        fb, sb = _law(bottom - e, before_bottom, law)
+        ft, st = _law(top + e, before_top, law)
+        residual = e - free - compliance * (fb - ft)
+        if residual > 0.0:
+            high = min(high, e)
+        else:
+            low = max(low, e)
+        step = residual / (1.0 + compliance * (sb + st))
+        e -= step
+        if abs(step) < TOLERANCE:
+            break
+        if not low <= e <= high:
+            e = 0.5 * (low + high)
+        if high - low < TOLERANCE:
+            break
+    fb, _ = _law(bottom - e, before_bottom, law)
+    ft, _ = _law(top + e, before_top, law)
+    return e, fb, ft
+
+
+@compiled
 def balance_links(bottom: np.ndarray, top: np.ndarray, before_bottom: np.ndarray,
                   before_top: np.ndarray, free: np.ndarray, compliance: float, law: np.ndarray,
                   deflection: np.ndarray, force_bottom: np.ndarray,
-                  force_top: np.ndarray) -> int:
+                  force_top: np.ndarray) -> None:
     """
-    Solve each link's deflection against its tips' contacts; return the iterations.
+    Solve each link's deflection against its tips' contacts (``balance_link``), arrays (n,).
 
-    ``bottom``, ``top``: the tips' penetrations into their rigid walls at the link's target (m,
-    > 0 inside); the link at deflection e presses its bottom tip bottom - e deep and its top tip
-    top + e; e = free + C (F_bottom - F_top), F the contact law ``law`` (``contact_law``) after
-    the last step's depths ``before_bottom``, ``before_top`` (updated to this step's). The law
-    rises with the depth, so the right-hand side falls as e rises: the root is single and
-    bracketed by free and its first image. Newton inside the bracket, bisection when a step
-    would leave it (the law's kinks: contact, the hysteresis band's ends).
+    The last depths ``before_bottom``, ``before_top`` become this step's.
     """
-    total = 0
     for i in range(free.size):
-        e = free[i]
-        fb, sb = _law(bottom[i] - e, before_bottom[i], law)
-        ft, st = _law(top[i] + e, before_top[i], law)
-        image = free[i] + compliance * (fb - ft)
-        low, high = min(e, image), max(e, image)
-        for iteration in range(MAX_ITERATIONS):
-            fb, sb = _law(bottom[i] - e, before_bottom[i], law)
-            ft, st = _law(top[i] + e, before_top[i], law)
-            residual = e - free[i] - compliance * (fb - ft)
-            if residual > 0.0:
-                high = min(high, e)
-            else:
-                low = max(low, e)
-            step = residual / (1.0 + compliance * (sb + st))
-            total += 1
-            if abs(step) < TOLERANCE:
-                e -= step
-                break
-            e -= step
-            if not low <= e <= high:
-                e = 0.5 * (low + high)
-            if high - low < TOLERANCE:
-                break
-        deflection[i] = e
-        force_bottom[i], _ = _law(bottom[i] - e, before_bottom[i], law)
-        force_top[i], _ = _law(top[i] + e, before_top[i], law)
+        e, fb, ft = balance_link(bottom[i], top[i], before_bottom[i], before_top[i], free[i],
+                                 compliance, law)
+        deflection[i], force_bottom[i], force_top[i] = e, fb, ft
         before_bottom[i] = max(bottom[i] - e, 0.0)
         before_top[i] = max(top[i] + e, 0.0)
-    return total
+
+
+# The flexures in the compiled step (core.dynamics.advance_scenario): a scenario's constants
+# (FLEX_FIELDS: on, k, c, m, the step's compliance C, dt, the propagator Phi) and its links'
+# state (FLEX_ROWS x n: deflection, rate, the last step-end load, and the inertial share of the
+# reaction the body gets through the link's bottom tip this step).
+FLEX_ON, FLEX_STIFFNESS, FLEX_DAMPING, FLEX_MASS, FLEX_COMPLIANCE, FLEX_DT, FLEX_PHI = range(7)
+FLEX_FIELDS = FLEX_PHI + 4
+DEFLECTION, RATE, LOAD, INERTIAL = range(4)
+FLEX_ROWS = 4
+
+
+def flexure_constants(flexures: Sequence[FlexureParams], dt: float) -> np.ndarray:
+    """Return the (S, FLEX_FIELDS) constants of S scenarios' flexures (rigid: all zero)."""
+    out = np.zeros((len(flexures), FLEX_FIELDS))
+    for row, f in zip(out, flexures):
+        if f.stiffness > 0.0:
+            flexures_of_one = Flexures(f, 1, dt)
+            row[FLEX_ON], row[FLEX_STIFFNESS], row[FLEX_DAMPING] = 1.0, f.stiffness, f.damping
+            row[FLEX_MASS], row[FLEX_COMPLIANCE] = f.link_mass, flexures_of_one.compliance
+            row[FLEX_DT] = dt
+            row[FLEX_PHI:] = flexures_of_one.phi
+    return out
+
+
+@compiled
+def flex_links(law_row: np.ndarray, constants: np.ndarray, state: np.ndarray,
+               tips: np.ndarray) -> None:
+    """
+    Solve one scenario's links on their flexures against their tips' contacts (kernel).
+
+    Before the contact law (core.contact.press_tips): each link's deflection e after the step,
+    balanced with the law's normal force and hysteresis (``balance_link``), moves its tips: the
+    depth the law sees (SEEN) becomes SEEN - e for the bottom tip (link i), SEEN + e for the top
+    tip (link n + i). ``law_row``: core.contact's LAW_FIELDS.
+    """
+    n = state.shape[1]
+    law = np.empty(4)
+    law[0], law[1], law[2] = law_row[KN_MEAN], law_row[KN_HALF], law_row[KN_RATE]
+    law[3] = law_row[EXPONENT]
+    k, c = constants[FLEX_STIFFNESS], constants[FLEX_DAMPING]
+    phi = constants[FLEX_PHI:FLEX_PHI + 4]
+    for i in range(n):
+        free, _ = _ramp(state[DEFLECTION, i], state[RATE, i], state[LOAD, i], 0.0, k, c,
+                        constants[FLEX_DT], phi)
+        e, fb, ft = balance_link(tips[SEEN, i], tips[SEEN, n + i], tips[DEPTH, i],
+                                 tips[DEPTH, n + i], free, constants[FLEX_COMPLIANCE], law)
+        tips[SEEN, i] -= e
+        tips[SEEN, n + i] += e
+
+
+@compiled
+def flex_advance(constants: np.ndarray, state: np.ndarray, tips: np.ndarray) -> None:
+    """
+    Step one scenario's links to their tips' step-end loads; pass their inertia to the body.
+
+    After the contact law: each link advances exactly (``_ramp``) to F = NORMAL_bottom -
+    NORMAL_top; what its momentum took, -m (e'_after - e'_before) / dt, is added to its bottom
+    tip's NORMAL (a bottom tip's load pushes the body up: +y), so that the body's step
+    (dynamics.move_body) sums the flexures' reactions; ``flex_restore`` takes it back after.
+    """
+    n = state.shape[1]
+    k, c, m, dt = (constants[FLEX_STIFFNESS], constants[FLEX_DAMPING], constants[FLEX_MASS],
+                   constants[FLEX_DT])
+    phi = constants[FLEX_PHI:FLEX_PHI + 4]
+    for i in range(n):
+        end = tips[NORMAL, i] - tips[NORMAL, n + i]
+        before = state[RATE, i]
+        e, rate = _ramp(state[DEFLECTION, i], before, state[LOAD, i], end, k, c, dt, phi)
+        state[DEFLECTION, i], state[RATE, i], state[LOAD, i] = e, rate, end
+        inertial = -m * (rate - before) / dt
+        state[INERTIAL, i] = inertial
+        tips[NORMAL, i] += inertial
+
+
+@compiled
+def flex_restore(state: np.ndarray, tips: np.ndarray) -> None:
+    """Give the tips back their contact loads once the body has stepped (``flex_advance``)."""
+    for i in range(state.shape[1]):
+        tips[NORMAL, i] -= state[INERTIAL, i]
 
 
 def transmissibility(frequency: float, stiffness: float, damping: float, mass: float,

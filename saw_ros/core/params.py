@@ -357,8 +357,8 @@ class FlexureParams(_Validated):
     """
     A compliant robot (issue 31, core.flexure, docs/model.md): each wave link on a flexure.
 
-    The link follows its kinematic target through a spring-damper normal to the backbone. Not yet
-    a Scenario section, for the same reason as WallDynamicsParams. docs/model.md gives the
+    The link follows its kinematic target through a spring-damper normal to the backbone, in
+    the compiled step (the Scenario's ``flexure`` section). docs/compliant_robot.md gives the
     printed TPU and nylon sets and their sources.
     """
 
@@ -379,6 +379,7 @@ class Scenario:
     conditions: ConditionParams = field(default_factory=ConditionParams)
     integration: IntegrationParams = field(default_factory=IntegrationParams)
     motor: MotorParams = field(default_factory=MotorParams)
+    flexure: FlexureParams = field(default_factory=FlexureParams)
 
     def __post_init__(self) -> None:
         # The robot starts centred in the gap; its crests must leave a fifth of max_penetration
@@ -438,7 +439,7 @@ class Scenario:
         return 'conditions.frequency'
 
     # -- flat name access, shared by the YAML files, the node parameters and the CLI ----------
-    SECTIONS = ('robot', 'surface', 'conditions', 'integration', 'motor')
+    SECTIONS = ('robot', 'surface', 'conditions', 'integration', 'motor', 'flexure')
 
     def flat(self) -> Dict[str, Any]:
         """{'surface.normal_stiffness': 15500.0, ...}."""

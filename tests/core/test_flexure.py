@@ -7,7 +7,9 @@ import pytest
 from saw_ros.core.contact import ContactLaw
 from saw_ros.core.flexure import balance_links, contact_law, elastic_law, Flexures, replay_links
 from saw_ros.core.flexure import transmissibility
-from saw_ros.core.params import FlexureParams, SurfaceParams
+from saw_ros.core.contact import NORMAL
+from saw_ros.core.dynamics import Simulator
+from saw_ros.core.params import FlexureParams, ParameterError, Scenario, SurfaceParams
 
 TPU = FlexureParams(stiffness=2000.0, damping=0.5, link_mass=0.004)     # docs/model.md, TPU
 KN, EXPONENT = 15500.0, 1.5                                              # the paper's contact
@@ -158,3 +160,41 @@ def test_the_link_solve_uses_the_contact_laws_own_constants():
                                   surface.restitution, surface.hysteresis_speed, 1e-3)
     np.testing.assert_allclose(contact_law(surface, 1e-3),
                                [core.kn_mean, core.kn_half, core.kn_rate, core.exponent])
+
+
+def test_rigid_flexures_in_the_step_give_todays_trajectory():
+    """The stiffest flexures the range allows follow the rigid robot within 1e-6 m over 4 s."""
+    base = Scenario()
+    rigid, stiff = Simulator(base), Simulator(base.with_values({'flexure.stiffness': 1e9}))
+    deviation = 0.0
+    for _ in range(40):
+        rigid.run(0.1)
+        stiff.run(0.1)
+        deviation = max(deviation, float(np.abs(rigid.q[:3] - stiff.q[:3]).max()))
+    assert deviation < 1e-6
+
+
+def test_flexures_in_the_step_deflect_and_keep_the_bodys_momentum():
+    """A TPU robot: links deflect as the flexure and the contact balance; the body is held."""
+    scenario = Scenario().with_values({'flexure.stiffness': TPU.stiffness,
+                                       'flexure.damping': TPU.damping})
+    sim = Simulator(scenario)
+    sim.run(0.5)
+    state = sim._flex_state[0]
+    n = state.shape[1]
+    # Each link's deflection balances its flexure against its tips' loads (to the hold's
+    # error: the rate term is small at rest-like steady crawling).
+    load = sim.tips[0, NORMAL, :n] - sim.tips[0, NORMAL, n:]
+    assert np.abs(state[0]).max() > 1e-4
+    np.testing.assert_allclose(state[2], load, atol=1e-12)
+    # Pressed up by its bottom tip, a link deflects up, and the other way round.
+    pressed = np.abs(load) > 0.2
+    assert (np.sign(state[0][pressed]) == np.sign(load[pressed])).all()
+    # The depth the law saw is the penetration less the deflection.
+    np.testing.assert_allclose(sim.depth[0, :n], sim.penetration[0, :n] - state[0], atol=1e-12)
+
+
+def test_flexures_with_bending_walls_are_refused():
+    with pytest.raises(ParameterError, match='not yet coupled'):
+        Simulator(Scenario().with_values({'flexure.stiffness': 2000.0,
+                                          'surface.foundation_stiffness': 1.5e5}))
