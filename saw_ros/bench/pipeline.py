@@ -57,7 +57,7 @@ from pathlib import Path
 import shutil
 import sys
 import time
-from typing import Dict, List, Optional
+from typing import Any, Dict, List, Optional
 
 from saw_ros.interface import topics
 from saw_ros.vision.camera import FPS     # the camera node's default, which the graph runs
@@ -161,7 +161,7 @@ class BridgeClient:
         import threading
         self.url = f'ws://127.0.0.1:{port}'
         self.timeout = timeout
-        self.client = None
+        self.client: Any = None      # a FoxgloveClient once connected
         self.round_trips_ms: List[float] = []
         self.problem = ''
         self._stop = threading.Event()

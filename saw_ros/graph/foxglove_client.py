@@ -38,9 +38,10 @@ class FoxgloveClient:
 
     def __init__(self, url: str, timeout: float = 10.0, keep: Iterable[str] = ()):
         from websockets.sync.client import connect
+        from websockets.typing import Subprotocol
         # legacy=True: a connection of our own, not websockets' reconnecting iterator.
-        self.ws = connect(url, subprotocols=SUBPROTOCOLS, max_size=None, open_timeout=timeout,
-                          legacy=True)
+        self.ws = connect(url, subprotocols=[Subprotocol(p) for p in SUBPROTOCOLS], max_size=None,
+                          open_timeout=timeout, legacy=True)
         self.keep = set(keep)
         self.channels: Dict[str, dict] = {}          # topic -> the server's channel
         self.messages: Dict[str, List[Tuple[int, float, bytes]]] = {}   # log ns, monotonic, data

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 import queue
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -111,7 +111,7 @@ class FoxgloveBridge(Node):
                                                          message_encoding='cdr')
         self.requests: 'queue.SimpleQueue[Tuple[int, int, str]]' = queue.SimpleQueue()
         self.watchers: Dict[str, set] = {name: set() for name in self.entries}
-        self.subscriptions_by_topic: Dict[str, object] = {}
+        self.subscriptions_by_topic: Dict[str, Any] = {}
         self.client_channels: Dict[Tuple[int, int], Optional[str]] = {}
         self.forwarded = 0          # messages passed to the server
         self.published = 0          # client commands published
