@@ -122,6 +122,8 @@ def run(args):
         raise UserError('give the lens once: VIDEO (calibrate it) or --lens (read it)')
     if args.lens is not None and not plane_wanted:
         raise UserError('--lens is for the plane: give --plane-image or --plane-frame')
+    if args.plane_image is not None:            # (before the lens, which takes a while)
+        input_file(args.plane_image, '--plane-image', 'picture')
     if args.video is not None:
         output_file(args.output, '--output', YAML_SUFFIXES)
     if plane_wanted:
