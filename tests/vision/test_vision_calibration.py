@@ -307,3 +307,28 @@ def test_track_with_plane_points(tmp_path, capsys):
     speed = float(out.split('steady-state speed (last 1.8 s): ')[1].split()[0]) / 100
     assert speed == pytest.approx(shot.mean_speed(), rel=0.015)
     assert math.isfinite(speed)
+
+
+def test_the_plane_from_a_frame_of_a_clip(tmp_path, capsys):
+    """--lens and --plane-video/--plane-frame: the board in frame 1 of a folder of pictures."""
+    shot = Shot(**{**PERSPECTIVE, 'width': 640, 'height': 360, 'scale': 600.0})
+    lens = shot.lens()
+    calibration.write_lens(tmp_path / 'camera.yaml', calibration.Lens(
+        640, 360, lens.K, np.array([*BARREL, 0.0])), 'the generator')
+    clip = tmp_path / 'clip'
+    clip.mkdir()
+    cv2.imwrite(str(clip / '0.png'), next(shot.frames())[2])
+    cv2.imwrite(str(clip / '1.png'), shot.board_still(CHESS, at=-0.1 + 0.03j))
+    code = main(['calibrate-camera', '--lens', str(tmp_path / 'camera.yaml'), '--board',
+                 'chessboard:9x6:0.02', '--plane-video', str(clip), '--plane-frame', '1',
+                 '--plane-output', str(tmp_path / 'plane.yaml')])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert '54 corners' in out and 'clip frame 1' in out
+    h = calibration.read_plane(tmp_path / 'plane.yaml')
+    found = CameraModel(width=640, height=360, plane=tuple(h.ravel()))
+    assert found.scale == pytest.approx(shot.calibrated_camera().scale, rel=0.005)
+    code = main(['calibrate-camera', '--lens', str(tmp_path / 'camera.yaml'), '--board',
+                 'chessboard:9x6:0.02', '--plane-video', str(clip), '--plane-frame', '0',
+                 '--plane-output', str(tmp_path / 'plane0.yaml')])
+    assert code == 2 and 'the board lying in the plane was not found' in capsys.readouterr().err
