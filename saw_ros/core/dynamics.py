@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import functools
 import math
+import threading
 from typing import Any, Callable, cast, Optional, Sequence, Tuple, Union
 
 import numba
@@ -215,7 +216,7 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
     b[DONE] = steps
 
 
-@numba.njit(cache=CACHE)
+@numba.njit(cache=CACHE, nogil=True)
 def advance(steps: int, first: int, every: int, dt: float, scale: float, side: np.ndarray,
             table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray, drive: np.ndarray,
             law: np.ndarray, motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
@@ -590,8 +591,9 @@ class Simulator:
         """Advance every scenario ``steps`` steps in one kernel call."""
         # Spread over the cores when there is enough to share: a parallel call costs more to
         # start than one scenario's step.
-        kernel: Callable[..., None] = (advance_in_parallel if self.count * steps >= PARALLEL_WORK
-                                       else advance)
+        parallel = (self.count > 1 and self.count * steps >= PARALLEL_WORK
+                    and threading.current_thread() is threading.main_thread())
+        kernel: Callable[..., None] = advance_in_parallel if parallel else advance
         kernel(steps, first, every, *self._kernel_arguments(), trace, trace_tips)
         self._finish(steps)
 
@@ -692,6 +694,20 @@ class Simulator:
         trace[row, :, 6] = self.omega
         trace[row, :, 7] = self.motor_torque
         trace[row, :, 8] = self.current
+
+
+def warm_up() -> None:
+    """
+    Compile the step's kernels into the disk cache (core.jit), or load them: a second or two.
+
+    One scenario stepped once (``advance``: the simulator node's path) and a batch of two, one
+    with bending walls and a motor, run long enough for the parallel kernel
+    (``advance_in_parallel``). scripts/bootstrap.sh calls it after installing.
+    """
+    Simulator(Scenario()).step()
+    bending = Scenario().with_values({'surface.foundation_stiffness': 1.5e5,
+                                      'motor.voltage': 6.0})
+    Simulator([Scenario(), bending]).run(PARALLEL_WORK * Scenario().integration.dt)
 
 
 def _run_chunk(job: Tuple[Sequence[Scenario], float, int, bool]) -> Trajectory:
