@@ -269,3 +269,117 @@ ringing below 8.5 Hz: under 11 N/m, sagging centimetres under a tip's load).
     (out / 'report.md').write_text(text)
     return {'rigid_vibration': run.vibration, 'rigid_check': check,
             **{f'{r["name"]}_reduction_pct': r['reduction_pct'] for r in printed}}
+
+
+# -- closed loop: the flexures in the compiled step ------------------------------------------
+SPEED_SHARE = 0.95      # the issue's bar: a structure counts at >= 95 % of the rigid speed
+
+
+def closed_loop(base: Scenario, stiffnesses: Sequence[float] = STIFFNESSES,
+                ratios: Sequence[float] = DAMPING_RATIOS, link_mass: float = LINK_MASS,
+                settle: float = SETTLE_S, measure: float = MEASURE_S) -> Dict[str, Any]:
+    """
+    Run the compliant robot itself for every (stiffness, damping ratio), in one batch.
+
+    At ``base``'s constant voltage: its speed, vibration (shape-drive's RMS normal
+    acceleration), electrical energy per metre, and the vibration against the rigid robot's at
+    the same speed (shape-drive's constant-voltage curve: the vibration rises steeply with the
+    speed, so the comparison is at equal speed). Returns the rows, the rigid figures and the
+    best reduction among the flexures at SPEED_SHARE of the rigid speed or more.
+    """
+    from saw_ros.analysis.shape_drive import ConstantCurve, evaluate, HARMONICS
+    grid = [(k, ratio) for ratio in ratios for k in stiffnesses]
+    scenarios = [base.with_values({f'flexure.{name}': value for name, value in
+                                   vars(flexure_of(k, ratio, link_mass)).items()})
+                 for k, ratio in grid]
+    zeros = np.zeros((len(grid) + 1, 2 * len(HARMONICS)))
+    voltage = base.motor.voltage
+    outcome = evaluate([base] + scenarios, [voltage] * (len(grid) + 1), zeros, HARMONICS,
+                       settle, measure)
+    curve = ConstantCurve(base, HARMONICS)
+    rigid = {'speed': float(outcome.speed[0]), 'vibration': float(outcome.vibration[0]),
+             'energy_per_m': float(outcome.power[0] / outcome.speed[0])}
+    rows = []
+    for i, (k, ratio) in enumerate(grid, start=1):
+        speed = float(outcome.speed[i])
+        inside = curve.speed[0] <= speed <= curve.speed[-1]
+        same_speed = float(curve.at(speed, curve.vibration))
+        rows.append({'stiffness': k, 'damping_ratio': ratio, 'speed': speed,
+                     'speed_share': speed / rigid['speed'],
+                     'vibration': float(outcome.vibration[i]),
+                     'rigid_vibration_same_speed': same_speed if inside else math.nan,
+                     'reduction_pct': (100.0 * (1.0 - float(outcome.vibration[i]) / same_speed)
+                                       if inside else math.nan),
+                     'energy_per_m': float(outcome.power[i] / speed)})
+    eligible = [r for r in rows if r['speed_share'] >= SPEED_SHARE
+                and math.isfinite(r['reduction_pct'])]
+    best = max(eligible, key=lambda r: r['reduction_pct'], default=None)
+    return {'rows': rows, 'rigid': rigid, 'best': best,
+            'curve_speeds': (float(curve.speed[0]), float(curve.speed[-1]))}
+
+
+def write_closed_loop(result: Dict[str, Any], base: Scenario, out: Path) -> None:
+    """Append the closed-loop section to ``out``/report.md; write closed_loop.csv and .png."""
+    rows, rigid, best = result['rows'], result['rigid'], result['best']
+    columns = ('stiffness', 'damping_ratio', 'speed', 'speed_share', 'vibration',
+               'rigid_vibration_same_speed', 'reduction_pct', 'energy_per_m')
+    lines = [','.join(columns)] + [','.join(f'{r[c]:.6g}' for c in columns) for r in rows]
+    (out / 'closed_loop.csv').write_text('\n'.join(lines) + '\n')
+    plt = _plt()
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.5, 7.0), sharex=True)
+    for ratio in sorted({r['damping_ratio'] for r in rows}):
+        mine = [r for r in rows if r['damping_ratio'] == ratio]
+        k = [r['stiffness'] for r in mine]
+        top.semilogx(k, [r['reduction_pct'] for r in mine], 'o-', label=f'damping ratio {ratio:g}')
+        bottom.semilogx(k, [100.0 * r['speed_share'] for r in mine], 'o-')
+    top.axhline(30.0, color='grey', ls='--', lw=0.8)
+    top.axhline(0.0, color='k', lw=0.6)
+    top.set_ylabel('vibration reduction at equal speed, %')
+    top.legend()
+    top.grid(True, which='both', alpha=0.3)
+    bottom.axhline(100.0 * SPEED_SHARE, color='grey', ls='--', lw=0.8)
+    bottom.set_ylabel("speed, % of the rigid robot's")
+    bottom.set_xlabel('flexure stiffness per link, N/m')
+    bottom.grid(True, which='both', alpha=0.3)
+    fig.suptitle(f'The compliant robot itself ({base.motor.voltage:g} V): rigid '
+                 f'{rigid["vibration"]:.3f} m/s^2 RMS at {100 * rigid["speed"]:.2f} cm/s')
+    fig.tight_layout()
+    fig.savefig(out / 'closed_loop.png', dpi=110)
+    plt.close(fig)
+    worse = [r for r in rows if math.isfinite(r['reduction_pct']) and r['reduction_pct'] < 0.0]
+    answer = ('No flexure of the sweep keeps 95 % of the rigid speed with a reduction.'
+              if best is None else
+              f'The best structure at >= {100 * SPEED_SHARE:g} % of the rigid speed: '
+              f'{best["stiffness"]:.0f} N/m, damping ratio {best["damping_ratio"]:g}, '
+              f'{best["reduction_pct"]:.1f} % less vibration than the rigid robot at the same '
+              f'speed ({best["vibration"]:.3f} against {best["rigid_vibration_same_speed"]:.3f} '
+              f'm/s^2 RMS), crawling at {100 * best["speed_share"]:.1f} % of the rigid speed '
+              f'for {best["energy_per_m"]:.2f} J/m of electrical energy (rigid '
+              f'{rigid["energy_per_m"]:.2f} J/m).')
+    finite = [r for r in rows if math.isfinite(r['reduction_pct'])]
+    worst = min(finite, key=lambda r: r['reduction_pct'])
+    worst_text = (f'The worst: {worst["stiffness"]:.0f} N/m at a damping ratio of '
+                  f'{worst["damping_ratio"]:g}, {-worst["reduction_pct"]:.1f} % more (the link '
+                  f'on its flexure and its contact ring together, and the body feels it).'
+                  if worst['reduction_pct'] < 0.0 else '')
+    stiffest = max(finite, key=lambda r: (r['stiffness'], -r['damping_ratio']))
+    text = f"""
+## Closed loop: the compliant robot itself
+
+The flexures in the compiled step (core.flexure in dynamics.advance_scenario), every
+(stiffness, damping ratio) of the sweep in one batch at {base.motor.voltage:g} V, against the
+rigid robot at the same speed (shape-drive's constant-voltage curve: the vibration rises
+steeply with the speed). Measured like shape-drive: {SETTLE_S:g} s to settle, {MEASURE_S:g} s.
+
+{answer}
+
+Flexures can also shake the robot more than rigid links: {len(worse)} of the {len(rows)} do.
+{worst_text} The stiffest of the sweep ({stiffest["stiffness"]:.0f} N/m) still changes it by
+{-stiffest["reduction_pct"]:+.1f} %: its links ring at
+{math.sqrt(stiffest["stiffness"] / LINK_MASS) / (2 * math.pi):.0f} Hz and the body feels them.
+How these figures move with the step: docs/compliant_robot.md.
+
+![closed loop](closed_loop.png)
+"""
+    with (out / 'report.md').open('a') as f:
+        f.write(text)

@@ -1,0 +1,48 @@
+"""
+Issue 31 figures: the compliant robot, link flexures in the compiled step (core.flexure).
+
+- ``core_steps_per_s_compliant``: Simulator.step() per second with the printed TPU flexures
+  (docs/compliant_robot.md), one scenario; ``compliant_core_speed_ratio``: over the rigid
+  robot's ``core_steps_per_s`` measured the same way in this run (goal >= 0.3).
+- ``compliant_rigid_limit_max_dev``: flexures of 1e9 N/m against rigid links over 4 s, the
+  largest deviation of x, y (m) or pitch (rad) (goal <= 1e-6).
+- ``compliant_vibration_reduction_pct``: the best vibration reduction (shape-drive's RMS normal
+  acceleration) against the rigid robot at the same speed, among the flexures of the default
+  sweep of ``saw-ros compliant`` that keep >= 95 % of the rigid speed, 6 V on the level
+  (goal >= 30); ``compliant_best_stiffness`` (N/m) and ``compliant_best_damping_ratio`` say
+  which.
+"""
+import numpy as np
+
+from saw_ros.analysis.compliant import closed_loop, DAMPING_RATIOS, STIFFNESSES
+from saw_ros.bench.core import _rate
+from saw_ros.core import Scenario, Simulator
+
+KEYS = ('core_steps_per_s_compliant', 'compliant_core_speed_ratio',
+        'compliant_rigid_limit_max_dev', 'compliant_vibration_reduction_pct',
+        'compliant_best_stiffness', 'compliant_best_damping_ratio')
+TPU = {'flexure.stiffness': 2070.0, 'flexure.damping': 0.29}
+
+
+def run(quick=False):
+    steps = 1000 if quick else 5000
+    rigid = _rate(Simulator(Scenario()), steps)
+    compliant = _rate(Simulator(Scenario().with_values(TPU)), steps)
+    a = Simulator(Scenario())
+    b = Simulator(Scenario().with_values({'flexure.stiffness': 1e9}))
+    deviation = 0.0
+    for _ in range(10 if quick else 40):
+        a.run(0.1)
+        b.run(0.1)
+        deviation = max(deviation, float(np.abs(a.q[:3] - b.q[:3]).max()))
+    base = Scenario().with_values({'motor.voltage': 6.0})
+    result = closed_loop(base, STIFFNESSES[::3] if quick else STIFFNESSES,
+                         DAMPING_RATIOS[-1:] if quick else DAMPING_RATIOS)
+    best = result['best']
+    return {'core_steps_per_s_compliant': round(compliant),
+            'compliant_core_speed_ratio': round(compliant / rigid, 3),
+            'compliant_rigid_limit_max_dev': float(f'{deviation:.3g}'),
+            'compliant_vibration_reduction_pct':
+                None if best is None else round(best['reduction_pct'], 2),
+            'compliant_best_stiffness': None if best is None else round(best['stiffness'], 1),
+            'compliant_best_damping_ratio': None if best is None else best['damping_ratio']}
