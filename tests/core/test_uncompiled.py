@@ -1,0 +1,32 @@
+"""The kernels run uncompiled (NUMBA_DISABLE_JIT=1) give the compiled kernels' numbers."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+from saw_ros.core.dynamics import simulate
+from saw_ros.core.params import Scenario
+
+# A batch that takes every branch of the step: rigid walls at constant frequency, bending
+# walls (the silicone sheet of docs/walls.md) driven by the motor, on a slope.
+VALUES = [{}, {'surface.foundation_stiffness': 1.5e5, 'surface.bending_stiffness': 6.25e-4,
+               'motor.voltage': 6.0, 'conditions.slope': 0.3}]
+DURATION = 0.15
+RUN = ('import json, sys; from saw_ros.core.dynamics import simulate; '
+       'from saw_ros.core.params import Scenario; import numba; '
+       'assert numba.config.DISABLE_JIT; '
+       'r = simulate([Scenario().with_values(v) for v in json.loads(sys.argv[1])], '
+       f'{DURATION}); print(json.dumps(r.q[-1].tolist()))')
+
+
+def test_the_uncompiled_kernels_step_as_the_compiled_ones():
+    compiled = simulate([Scenario().with_values(v) for v in VALUES], DURATION)
+    env = dict(os.environ, NUMBA_DISABLE_JIT='1')
+    out = subprocess.run([sys.executable, '-c', RUN, json.dumps(VALUES)], env=env, check=True,
+                         capture_output=True, text=True, timeout=300)
+    uncompiled = np.array(json.loads(out.stdout.splitlines()[-1]))
+    assert np.ptp(compiled.q[:, :, 0], axis=0).min() > 5e-4       # both robots moved
+    # The same operations in the same order; only the math library may differ in a last bit.
+    np.testing.assert_allclose(uncompiled, compiled.q[-1], rtol=0.0, atol=1e-9)
