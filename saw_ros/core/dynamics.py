@@ -389,10 +389,13 @@ class Simulator:
             self._walls = np.zeros((self.count, WALL_FIELDS))
             self._wall_state = np.zeros((self.count, WALL_ROWS, 2, self.table.count // 2))
         # Link flexures (core.flexure, docs/compliant_robot.md); their state lives on across
-        # new parameters, as the body's does.
-        self._flex = flexure_constants([s.flexure for s in scenarios], self.dt)
+        # new parameters, as the body's does, and starts at rest where they are switched on.
+        flex = flexure_constants([s.flexure for s in scenarios], self.dt)
         if not hasattr(self, '_flex_state'):
             self._flex_state = np.zeros((self.count, FLEX_ROWS, self.table.count // 2))
+        else:
+            self._flex_state[(flex[:, FLEX_ON] > 0.0) & (self._flex[:, FLEX_ON] == 0.0)] = 0.0
+        self._flex = flex
         if self.walls is not None and (self._flex[:, FLEX_ON] > 0.0).any():
             raise ParameterError('flexure.stiffness > 0 with bending walls (surface.'
                                  'foundation_stiffness > 0): the flexures are not yet coupled '

@@ -198,3 +198,16 @@ def test_flexures_with_bending_walls_are_refused():
     with pytest.raises(ParameterError, match='not yet coupled'):
         Simulator(Scenario().with_values({'flexure.stiffness': 2000.0,
                                           'surface.foundation_stiffness': 1.5e5}))
+
+
+def test_flexures_switched_on_during_a_run_start_at_rest():
+    scenario = Scenario().with_values({'flexure.stiffness': TPU.stiffness})
+    sim = Simulator(scenario)
+    sim.run(0.2)
+    assert np.abs(sim._flex_state[0, 0]).max() > 0
+    sim.set_scenarios([Scenario()])                  # rigid links: the flexures stop
+    sim.run(0.05)
+    sim.set_scenarios([scenario])                    # and come back at rest
+    assert not sim._flex_state.any()
+    sim.run(0.05)
+    assert np.abs(sim._flex_state[0, 0]).max() > 0
