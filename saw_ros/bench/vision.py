@@ -153,7 +153,8 @@ def perspective_figures(quick: bool = False) -> dict:
         # Uncalibrated: a ruler at the picture's centre, or the marker spacing alone.
         results, tracker = track_video(shot, dict(kw, scale=shot.ruler_scale()), config,
                                        slope_known=False)
-        along = perspective.fit(*perspective.along_track(results, complex(0.0, shot.track_y)))
+        along = None if tracker.slope_used is None else perspective.fit(
+            *perspective.along_track(results, tracker.camera, tracker.slope_used))
         warned = bool(tracker.warnings) or (along is not None and along.significant)
         silent += abs(_steady(results) / truth - 1) > 0.01 and not warned
         measured = measure_plane(shot, kw, config, shot.spacing, slope_known=False)

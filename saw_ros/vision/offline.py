@@ -125,10 +125,10 @@ def _first_pass(source, camera_kw: dict, config: TrackerConfig, spacing: float, 
                          f'least {MIN_SCALE_FRAMES} needed for a scale): give --px-per-m, or '
                          'a clip in which both markers are in view for longer')
     camera = tracker.camera
-    center = complex(camera.center_x, camera.center_y)
-    along = perspective.fit(*perspective.along_track(results, center), spacing)
-    plane = None
     slope = tracker.slope_used
+    along = None if slope is None else \
+        perspective.fit(*perspective.along_track(results, camera, slope), spacing)
+    plane = None
     if along is not None and along.significant and slope is not None:
         direction = complex(math.cos(slope), math.sin(slope))
         if camera.mirror:

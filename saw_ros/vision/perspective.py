@@ -123,10 +123,28 @@ def fit(front: Sequence[float], back: Sequence[float],
     return AlongTrack(k, g, (first, last), change, sigma, int(af.size))
 
 
-def along_track(results, center: complex) -> Tuple[List[float], List[float]]:
-    """Return the ok frames' (front, back) places along the track (m, from ``center``)."""
-    ok = [r for r in results if r.ok and r.front is not None and r.back is not None]
-    return [(r.front - center).real for r in ok], [(r.back - center).real for r in ok]
+def along_track(results, camera, slope: float) -> Tuple[List[float], List[float]]:
+    """
+    Return the ok frames' (front, back) places along the track, apparent m from the centre.
+
+    From the markers' pixels (undistorted by ``camera``'s lens), along the track's direction in
+    the picture (``slope``, rad; the tracker's ``slope_used``) at ``camera.scale``: the same
+    frame for every frame of the clip (the tracker's own positions are turned once the track's
+    direction is known, and its estimate improves as the robot goes).
+    """
+    ok = [r for r in results if r.ok and r.front_px is not None and r.back_px is not None]
+    if not ok:
+        return [], []
+    direction = complex(math.cos(slope), math.sin(slope))
+    if camera.mirror:
+        direction = -direction.conjugate()
+    cx, cy = camera.principal_point
+    out = []
+    for name in ('front_px', 'back_px'):
+        p = camera.undistort(np.array([getattr(r, name) for r in ok]))
+        z = (p.real - cx) - 1j * (p.imag - cy)             # level picture frame, y up
+        out.append(list((z * direction.conjugate()).real / camera.scale))
+    return out[0], out[1]
 
 
 def warning(fit_: AlongTrack, how: str) -> str:

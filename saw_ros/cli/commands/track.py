@@ -344,9 +344,9 @@ def scale_warnings(results, tracker, px_per_m: float, spacing) -> list:
     the scale measures otherwise, by more than the spacing's own spread over the frames.
     """
     out = []
-    camera = tracker.camera
-    along = perspective.fit(*perspective.along_track(
-        results, complex(camera.center_x, camera.center_y)))
+    slope = tracker.slope_used
+    along = None if slope is None else perspective.fit(*perspective.along_track(
+        results, tracker.camera, slope))
     if along is not None and along.significant:
         out.append(perspective.warning(along, f'--px-per-m {px_per_m:g}'))
     if spacing is not None:
