@@ -163,3 +163,25 @@ def test_a_client_publishing_on_another_topic_is_refused_and_the_bridge_runs_on(
     assert 'refused, not published: client' in log
     assert re.search(r'stopped: \d+ messages forwarded, [1-9]\d* client commands published, '
                      r'5 refused', log), log
+
+
+def test_the_bridge_subscribes_to_a_topic_only_while_a_client_does(ros_context, tmp_path):
+    from rclpy.node import Node
+    node = Node('bridge_publisher', context=ros_context)
+    entry = topics.topic(topics.POSE)
+    publisher = node.create_publisher(message_class(entry.type), entry.name, profile(entry.qos))
+    bridge, url = start_bridge(tmp_path)
+    client = FoxgloveClient(url)
+    try:
+        assert wait_for(lambda: topics.POSE in client.channels, 10), client.channels
+        # Connected and advertised to, but subscribed to nothing: the bridge takes nothing.
+        assert not wait_for(lambda: publisher.get_subscription_count() > 0, 1.0)
+        client.subscribe([topics.POSE])
+        assert wait_for(lambda: publisher.get_subscription_count() == 1, 20), bridge.output()
+        client.close()          # a client that leaves unsubscribes from everything
+        assert wait_for(lambda: publisher.get_subscription_count() == 0, 20), bridge.output()
+    finally:
+        client.close()
+        bridge.stop(timeout=10)
+        node.destroy_node()
+    assert bridge.returncode == 0 and 'Traceback' not in bridge.output(), bridge.output()
