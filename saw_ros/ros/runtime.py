@@ -304,6 +304,7 @@ def check_params_file(path: str) -> None:
     from saw_ros.core.params import ParameterError
     # launch_ros writes a list parameter as a tuple (``!!python/tuple``), which rcl reads as a
     # list: so does this check (safe_load refused `ros2 launch`'s recorder topics).
+
     class ParamsLoader(yaml.SafeLoader):
         """SafeLoader, and a !!python/tuple read as a list."""
 

@@ -31,4 +31,3 @@ def test_without_a_venv_it_says_to_bootstrap_first(tmp_path):
     out = _run(tmp_path, tmp_path / 'no_venv')
     assert out.returncode == 1 and out.stderr.count('\n') == 1
     assert 'no Python venv at' in out.stderr and 'scripts/bootstrap.sh' in out.stderr
-
