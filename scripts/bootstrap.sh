@@ -66,3 +66,15 @@ ln -sf "$ROOT"/launch/*.launch.py "$VENV/share/saw_ros/launch/"
 
 # tf2_msgs (for /tf, /tf_static) is not among the ROS wheels: built into the venv, once.
 "$ROOT/scripts/build_tf2_msgs.sh" "$VENV"
+
+# The physics core's kernels compiled into their disk cache once per version of them (the
+# folder saw_ros/core/jit.py names after a digest of the kernel modules), so that the first
+# simulate or simulator node loads them instead of compiling (docs/core.md).
+KERNELS="$(for f in $(grep -lF 'numba.njit' "$ROOT"/saw_ros/core/*.py | LC_ALL=C sort); do
+  printf '%s' "$(basename "$f")"; cat "$f"; done | sha256sum | cut -c1-16)"
+WARM="$ROOT/saw_ros/core/__pycache__/numba/kernels-$KERNELS/.warm"
+if [ -z "${NUMBA_CACHE_DIR:-}" ] && [ ! -e "$WARM" ]; then
+  echo "[bootstrap] compiling the physics core's kernels (once per change of them, ~1 min)" >&2
+  "$VENV/bin/python" -c 'from saw_ros.core.dynamics import warm_up; warm_up()' \
+    && { [ ! -d "$(dirname "$WARM")" ] || touch "$WARM"; }
+fi
