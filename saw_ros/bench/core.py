@@ -12,11 +12,13 @@ Physics core throughput (the compiled kernels, issue 30): one scenario, batches,
   (``batch_scaling_scenario_steps_per_s`` the five rates).
 - ``core_jit_cold_s``: a fresh Python compiling every kernel into an empty cache (a temporary
   NUMBA_CACHE_DIR) and stepping; ``core_jit_warm_s``: the same process again, kernels loaded
-  from that cache.
+  from that cache; ``core_jit_cold_cpu_s`` and ``core_jit_warm_cpu_s`` their CPU seconds (the
+  wall clock of a loaded machine is mostly waiting).
 """
 import math
 import os
 from pathlib import Path
+import resource
 import subprocess
 import sys
 import tempfile
@@ -31,7 +33,7 @@ from saw_ros.core.dynamics import simulate
 KEYS = ['core_steps_per_s', 'core_step_calls_per_s', 'batch_scenario_steps_per_s',
         'batch_single_process_scenario_steps_per_s', 'batch_pool_scenario_steps_per_s',
         'batch_scaling_scenario_steps_per_s', 'batch_scaling_4096_ratio', 'core_jit_cold_s',
-        'core_jit_warm_s']
+        'core_jit_warm_s', 'core_jit_cold_cpu_s', 'core_jit_warm_cpu_s']
 SCALING = (1, 16, 256, 1024, 4096)
 # What the cold start compiles: every kernel (one scenario's step, a parallel batch, a motor,
 # bending walls), as the first simulate of a campaign or the simulator node would.
@@ -85,16 +87,24 @@ def scaling(quick=False):
 
 
 def jit_start() -> tuple:
-    """Return (s for a fresh Python to compile every kernel into an empty cache, s to load it)."""
-    times = []
+    """
+    Return s for a fresh Python to compile every kernel into an empty cache, s to load it.
+
+    Wall-clock seconds, and the CPU seconds of the same two processes (what a loaded machine
+    does not inflate): (cold, warm, cold CPU, warm CPU).
+    """
+    times, cpu = [], []
     with tempfile.TemporaryDirectory(prefix='saw_ros_numba_') as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         for _ in range(2):
+            used = resource.getrusage(resource.RUSAGE_CHILDREN)
             start = time.perf_counter()
             subprocess.run([sys.executable, '-c', WARM_UP], env=env, check=True,
                            cwd=Path(__file__).resolve().parents[2])
             times.append(time.perf_counter() - start)
-    return times[0], times[1]
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu.append(after.ru_utime + after.ru_stime - used.ru_utime - used.ru_stime)
+    return times[0], times[1], cpu[0], cpu[1]
 
 
 def batch_scenarios(count=256):
@@ -114,7 +124,7 @@ def _batch_rate(scenarios, duration, workers=1) -> float:
 
 
 def run(quick=False):
-    cold, warm = jit_start()
+    cold, warm, cold_cpu, warm_cpu = jit_start()
     single = run_rate(Simulator(Scenario()), 1.0 if quick else 5.0)
     calls = _rate(Simulator(Scenario()), 2000 if quick else 10000)
     scenarios = batch_scenarios(256)
@@ -130,4 +140,5 @@ def run(quick=False):
             'batch_pool_scenario_steps_per_s': round(pool),
             'batch_scaling_scenario_steps_per_s': {str(k): round(v) for k, v in rates.items()},
             'batch_scaling_4096_ratio': round(rates[4096] / max(rates.values()), 3),
-            'core_jit_cold_s': round(cold, 2), 'core_jit_warm_s': round(warm, 2)}
+            'core_jit_cold_s': round(cold, 2), 'core_jit_warm_s': round(warm, 2),
+            'core_jit_cold_cpu_s': round(cold_cpu, 2), 'core_jit_warm_cpu_s': round(warm_cpu, 2)}
