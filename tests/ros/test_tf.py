@@ -150,7 +150,9 @@ def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(
     try:
         def spin(timeout):
             executor.spin_once(timeout_sec=timeout)
-        assert wait_for(lambda: proc.returncode is not None, 30.0, spin=spin), 'no exit'
+        # 90 s: the simulator's start (imports, compiled kernels) on a busy machine; the run
+        # itself is 0.5 s of simulated time.
+        assert wait_for(lambda: proc.returncode is not None, 90.0, spin=spin), 'no exit'
         assert proc.returncode == 0, proc.log_path.read_text()[-2000:]
     finally:
         proc.stop(timeout=5)
