@@ -8,7 +8,7 @@ clock, pose, twist, contacts, contact_wrench, joint_states: 0-6), ``image_fps`` 
 ``image_width``/``image_height``, ``prefix`` (topic namespace, default ``/saw``; /clock is
 ``<prefix>/clock`` unless ``prefix`` is /saw), ``wait_subscribers`` (start once every topic has
 this many subscriptions, at most 30 s), ``start_delay`` (s, after that), ``publisher_depth``
-(history of the 1 kHz-class publishers: 1000 as the simulator's, ``PUBLISHER_DEPTH``; 0 = the
+(history of the 1 kHz-class publishers: 3000 as the simulator's, ``PUBLISHER_DEPTH``; 0 = the
 contract's STREAM_QOS/CLOCK_QOS depths 200/100), ``image_depth`` (history of the image publisher,
 default 120: see IMAGE_DEPTH), ``image_participant`` (images from a DDS participant of their own,
 as from the camera node). At the end it waits for reliable delivery, prints ``published <topic>

@@ -45,11 +45,15 @@ def with_depth(qos: QoSProfile, depth: int) -> QoSProfile:
 # A subscriber of the 1 kHz streams in a busy graph keeps 1 s of queue (docs/measurements.md).
 INPUT_DEPTH = 1000
 # Publishers of the 1 kHz streams keep the contract's policies (STREAM_QOS, CLOCK_QOS) with a
-# deeper history, 1000 = 1 s at 1 kHz: a reliable reader that falls behind can only be repaired
+# deeper history, 3000 = 3 s at 1 kHz: a reliable reader that falls behind can only be repaired
 # from the writer's history, and Clock, a plain type, is handed to same-host readers straight
 # from it (Fast DDS data sharing), so a reader further behind than the writer's depth loses
-# /clock ticks however deep its own queue is. (Depth does not affect QoS compatibility.)
-PUBLISHER_DEPTH = 1000
+# /clock ticks however deep its own queue is. (Depth does not affect QoS compatibility.) With
+# 1 s, a recorder whose process stood still for 1.3 s (SIGSTOP, as a busy machine deschedules
+# it) lost 101 messages and for 2.5 s 4802; with 3 s (and the recorder's queue_depth 3000), 0
+# and 0 (docs/measurements.md). Memory is used only while a reader is behind: a volatile
+# writer drops the samples every reader has acknowledged.
+PUBLISHER_DEPTH = 3000
 # Publishers of camera images and infos keep 1 s of history at 60 fps: a reliable reader that
 # falls behind is repaired from the writer's history (cf. PUBLISHER_DEPTH).
 IMAGE_PUBLISHER_DEPTH = 60

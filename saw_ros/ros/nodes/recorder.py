@@ -11,7 +11,8 @@ ROS parameters:
   output      string    bag directory; empty: ``<bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>``
   bags_dir    string    where new bags go (default ``bags``)
   label       string    what is recorded, for the directory name (default ``default``)
-  queue_depth int       subscription history depth (default 1000)
+  queue_depth int       subscription history depth (default 3000: 3 s at 1 kHz, as the
+                        simulator's publishers keep; PUBLISHER_DEPTH)
   compression string    ``zstd`` (default) or ``none``
   chunk_size  int       bytes per MCAP chunk (default 786432, rosbag2's)
 
@@ -71,7 +72,7 @@ PARAMETERS = (
                                  '<bags_dir>/<YYYY-MM-DD_HH-MM-SS>_<label>')),
     ('bags_dir', 'bags', spec_meta('', 'where new bags go')),
     ('label', 'default', spec_meta('', 'what is recorded, for the directory name')),
-    ('queue_depth', 1000, spec_meta('', 'subscription history depth', 1, None)),
+    ('queue_depth', 3000, spec_meta('', 'subscription history depth', 1, None)),
     ('compression', 'zstd', spec_meta('', 'zstd or none', choices=('zstd', 'none'))),
     ('chunk_size', 768 * 1024, spec_meta('bytes', 'bytes per MCAP chunk', 1, None)),
     ('discovery_period', 0.25, spec_meta('s', 'seconds between looks for new topics', 0.0, None,
