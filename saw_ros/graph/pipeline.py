@@ -83,7 +83,10 @@ def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
     commands, which covers the tracker's first frames.
 
     ``foxglove``: also the Foxglove bridge (saw_ros.ros.nodes.foxglove_bridge), with these
-    parameters (``port``...); it subscribes to a topic only while a client watches it.
+    parameters (``port``...); it subscribes to a topic only while a client watches it, and with
+    a recorder only once the simulator runs (``hold_until_clock``): a client subscribed through
+    it would otherwise give the simulator the subscribers it waits for before the recorder
+    matched (the bench's recorder lost the first 2.4 s).
     """
     scenario = dict(scenario or {})
     if controller is not None:
@@ -110,7 +113,8 @@ def node_parameters(duration: float = 10.0, real_time_factor: float = 0.5,
         'vision': {'slope': slope, 'image_transport': 'compressed'},
         'camera': dict(slope=slope, **dict(camera or {})),
         **({'speed_controller': dict(controller)} if controller is not None else {}),
-        **({'foxglove_bridge': dict(foxglove)} if foxglove is not None else {}),
+        **({'foxglove_bridge': dict(hold_until_clock=bool(record), **foxglove)}
+           if foxglove is not None else {}),
     }
 
 
@@ -143,11 +147,6 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
     # an mp4 beside the JPEGs cost the live graph real time (saw-ros bag video makes it after).
     node_params = node_parameters(duration, real_time_factor, scenario, record, camera,
                                   report_path, reference_file, controller, foxglove)
-    # The bridge subscribes for its clients, and the simulator starts once every topic has a
-    # subscriber: a client connected before the recorder matched would start the run without
-    # it (the bench's recorder lost the first 2.4 s). With a recorder, the bridge joins once the
-    # simulator has started.
-    bridge_params = node_params.pop('foxglove_bridge', None)
     nodes: List[ManagedProcess] = []
     codes: Dict[str, int] = {}
     start = time.monotonic()
@@ -177,9 +176,6 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
             probe = ManagedProcess('ready', probe_command, env, logs)
         started = {name: launch(name, **values) for name, values in node_params.items()}
         simulator, comparison = started['simulator'], started['comparison']
-        if bridge_params is not None and not record:
-            launch('foxglove_bridge', **bridge_params)
-            bridge_params = None
         if record:
             # With a recorder the simulator starts stepping once the recorder has matched its
             # topics (/saw/twist & co. have no other subscriber). So the recorder comes last:
@@ -202,9 +198,6 @@ def run_pipeline(out_dir: Path, duration: float = 10.0, real_time_factor: float 
         deadline = time.monotonic() + limit
         while simulator.returncode is None or comparison.returncode is None:
             check_alive()
-            if bridge_params is not None and 'subscribers present' in simulator.output():
-                launch('foxglove_bridge', **bridge_params)
-                bridge_params = None
             if time.monotonic() > deadline:
                 raise PipelineError(f'the run did not finish within {limit:.0f} s; see {logs}')
             if progress is not None:

@@ -29,9 +29,9 @@ def start(name, params, tmp_path):
     return ManagedProcess(name, node_command(name, params=params), env=None, log_dir=tmp_path)
 
 
-def start_bridge(tmp_path):
+def start_bridge(tmp_path, **params):
     """Start the bridge on a free port (port 0); return (process, its ws:// URL from its log)."""
-    bridge = start('foxglove_bridge', {'port': 0}, tmp_path)
+    bridge = start('foxglove_bridge', {'port': 0, **params}, tmp_path)
     found = []
 
     def url():
@@ -180,6 +180,37 @@ def test_the_bridge_subscribes_to_a_topic_only_while_a_client_does(ros_context, 
         assert wait_for(lambda: publisher.get_subscription_count() == 1, 20), bridge.output()
         client.close()          # a client that leaves unsubscribes from everything
         assert wait_for(lambda: publisher.get_subscription_count() == 0, 20), bridge.output()
+    finally:
+        client.close()
+        bridge.stop(timeout=10)
+        node.destroy_node()
+    assert bridge.returncode == 0 and 'Traceback' not in bridge.output(), bridge.output()
+
+
+def test_held_subscriptions_wait_for_the_first_clock(ros_context, tmp_path):
+    """With hold_until_clock (the demo's, with a recorder) a client cannot start the run."""
+    from rclpy.node import Node
+    node = Node('bridge_publisher', context=ros_context)
+    pose, clock = (topics.topic(name) for name in (topics.POSE, topics.CLOCK))
+    publisher = node.create_publisher(message_class(pose.type), pose.name, profile(pose.qos))
+    clock_publisher = node.create_publisher(message_class(clock.type), clock.name,
+                                            profile(clock.qos))
+    bridge, url = start_bridge(tmp_path, hold_until_clock=True)
+    client = FoxgloveClient(url)
+    try:
+        assert wait_for(lambda: topics.POSE in client.channels, 10), client.channels
+        client.subscribe([topics.POSE])
+        assert wait_for(lambda: clock_publisher.get_subscription_count() == 1, 20)
+        assert not wait_for(lambda: publisher.get_subscription_count() > 0, 1.0)
+        clock_publisher.publish(message_class(clock.type)())       # the simulator's first step
+
+        def subscribed():
+            if clock_publisher.get_subscription_count():
+                clock_publisher.publish(message_class(clock.type)())
+            return publisher.get_subscription_count() == 1
+        assert wait_for(subscribed, 20, poll=0.05), bridge.output()
+        # ...and the bridge's watch on /clock is gone with it.
+        assert wait_for(lambda: clock_publisher.get_subscription_count() == 0, 20)
     finally:
         client.close()
         bridge.stop(timeout=10)

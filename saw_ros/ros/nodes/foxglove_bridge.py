@@ -46,6 +46,10 @@ PARAMETERS = (
             'exposes every topic and the motor to anyone who reaches the port')),
     ('port', 8765, spec_meta('', "TCP port of the server (8765: Foxglove's default); 0 = any "
                                  'free port (said in the log)', 0, 65535)),
+    ('hold_until_clock', False, spec_meta(
+        '', "hold the clients' subscriptions until the first /clock message: a client then "
+            "cannot be the subscriber a simulator's wait_for_subscribers waits for, so a "
+            'recording of the run misses nothing (saw-ros demo sets it)')),
 )
 # Not offered: the raw frames (the compressed ones are the camera's stream here).
 NOT_SERVED = (topics.IMAGE,)
@@ -132,6 +136,15 @@ class FoxgloveBridge(Node):
         except Exception as exc:  # noqa: BLE001  (the SDK raises its own error types)
             raise NodeFailure(f'cannot serve on {p["address"]}:{p["port"]}: {exc}') from None
         self.url = f'ws://{p["address"]}:{self.server.port}'
+        # Until the simulator runs (its first /clock), the clients' subscriptions wait in the
+        # queue; the /clock subscription that watches for it goes once it came.
+        self._clock_watch: Any = None
+        self.running = not p['hold_until_clock']
+        if not self.running:
+            clock = topics.topic(topics.CLOCK)
+            self._clock_watch = self.create_subscription(
+                message_class(clock.type), clock.name, self._clock_came, profile(clock.qos),
+                raw=True)
         self.create_timer(POLL_PERIOD, self._apply_requests)
         self.get_logger().info(
             f'Foxglove WebSocket on {self.url}: {len(self.channels)} topics; clients may '
@@ -139,8 +152,16 @@ class FoxgloveBridge(Node):
             'WebSocket)')
 
     # -- topics out: subscribed while a client subscribes ----------------------------------
+    def _clock_came(self, _data: bytes) -> None:
+        self.running = True
+
     def _apply_requests(self) -> None:
         """Subscribe and unsubscribe as the clients did (on the executor's thread)."""
+        if not self.running:
+            return
+        if self._clock_watch is not None:
+            self.destroy_subscription(self._clock_watch)
+            self._clock_watch = None
         while True:
             try:
                 delta, client, name = self.requests.get_nowait()
