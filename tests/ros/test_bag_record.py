@@ -119,7 +119,9 @@ def test_player_republishes_with_timing_and_clock(tmp_path, ros_context):
     assert player.wait(10) == 0, player.output()
     assert len(got['/saw/pose']) == 500 and len(got['/clock']) == 500
     span = got['/saw/pose'][-1] - got['/saw/pose'][0]
-    assert 0.8 < span < 1.6  # 0.499 s of bag at rate 0.5
+    # 0.499 s of bag at rate 0.5: about 1 s; the bound above allows the receipt times of a test
+    # process that a loaded machine (two CPU hogs beside the suite) delays by up to a second.
+    assert 0.8 < span < 2.5
     assert got['/clock'][-1].nanosec == 499 * 10**6
     ex.shutdown()
     node.destroy_node()
