@@ -318,7 +318,7 @@ def graph(tmp_path_factory):
         helix = lambda: table.JOINT_STATES in {  # noqa: E731
             n for n, _ in probe.node.get_subscriber_names_and_types_by_node('comparison', '/')}
         assert wait_for(lambda: set(probe.inputs) >= set(GRAPH) and all(probe.heard.values())
-                        and probe.clock_ns > NS and helix(), 90.0, spin=probe.spin), \
+                        and probe.clock_ns > NS and helix(), 150.0, spin=probe.spin), \
             (sorted(probe.inputs), probe.heard, probe.clock_ns, helix(),
              {p: proc.output()[-2000:] for p, proc in processes.items()
               if proc.returncode is not None})
