@@ -57,7 +57,7 @@ def test_every_subscribed_topic_says_what_a_spoofed_message_can_do():
 
 
 def test_security_doc_states_what_each_subscribed_topic_trusts():
-    """docs/security.md's per-topic table is the topic table's subscribers and trust, row by row."""
+    """docs/security.md's per-topic table is the topic table's readers and trust, row by row."""
     text = (ROOT / 'docs' / 'security.md').read_text(encoding='utf-8')
     for t in topics.TOPICS + topics.RCL_TOPICS:
         if t.trust:
