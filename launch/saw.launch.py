@@ -82,8 +82,11 @@ def _graph(context):
              for name, values in params.items()}
     actions = list(nodes.values())
     if value('foxglove').lower() in TRUE:
+        # With a recorder, clients' subscriptions wait for the first step: a client would
+        # otherwise be the subscriber the simulator waits for, ahead of the recorder.
         actions.append(Node(package='saw_ros', executable='foxglove_bridge',
-                            exec_name='foxglove_bridge', output='screen', prefix=batch))
+                            exec_name='foxglove_bridge', output='screen', prefix=batch,
+                            parameters=[{'hold_until_clock': record}]))
     if record:
         # A list: launch_ros writes parameters as YAML, and a tuple is a Python-only YAML tag.
         recorded = {'topics': list(topics.recorded_topics())}
