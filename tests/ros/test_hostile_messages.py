@@ -36,6 +36,7 @@ pytestmark = pytest.mark.ros
 from saw_ros.interface import topics as table  # noqa: E402, I100
 from saw_ros.ros import conversions as conv  # noqa: E402
 from saw_ros.ros.qos import message_class, publisher_profile  # noqa: E402
+from saw_ros.ros.guard import WARN_EVERY  # noqa: E402
 
 NS = 1_000_000_000
 RCL_OWN = {table.ROSOUT, table.PARAMETER_EVENTS}    # what rclpy gives every node, by the table
@@ -387,9 +388,16 @@ def test_every_node_survives_every_hostile_message(graph, capsys):
     assert inputs['comparison'].get(f'{table.POSE}: stamp went back', 0) >= 1, \
         inputs['comparison']
     assert inputs['comparison'].get(f'{table.POSE}: not finite', 0) >= 1, inputs['comparison']
+    # Warnings throttled: at most one per topic every WARN_EVERY s, each naming its topic.
+    allowed = 1 + int((time.monotonic() - t0) / WARN_EVERY)
     for p, proc in processes.items():
         out = proc.output()
         assert 'Traceback' not in out and 'FATAL' not in out, (p, out[-3000:])
+        warned = [line for line in out.splitlines() if 'refused, not used' in line]
+        for name in targets:
+            said = sum(f'message on {name} refused' in line for line in warned)
+            assert said <= allowed, (p, name, said, allowed)
+        assert len(warned) <= allowed * len(targets), (p, warned)
     for p, reasons in parameter_refusals.items():
         assert len(reasons) == 2 and all(reasons), (p, reasons)
     with capsys.disabled():
