@@ -35,8 +35,8 @@ pytestmark = pytest.mark.ros
 
 from saw_ros.interface import topics as table  # noqa: E402, I100
 from saw_ros.ros import conversions as conv  # noqa: E402
-from saw_ros.ros.qos import message_class, publisher_profile  # noqa: E402
 from saw_ros.ros.guard import WARN_EVERY  # noqa: E402
+from saw_ros.ros.qos import message_class, publisher_profile  # noqa: E402
 
 NS = 1_000_000_000
 RCL_OWN = {table.ROSOUT, table.PARAMETER_EVENTS}    # what rclpy gives every node, by the table
