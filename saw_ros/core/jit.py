@@ -19,12 +19,17 @@ import logging
 import os
 from pathlib import Path
 import shutil
+import time
 from typing import Iterable, List, Mapping, Optional, Tuple
 
 from numba.core import config as numba_config
 
 PACKAGE = Path(__file__).resolve().parent
 PREFIX = 'kernels-'
+# Other versions' folders are removed once nothing was written in them for this long (s): a
+# process of the version before an edit may still be compiling into its folder (numba fails on
+# a cache file that vanishes under it).
+STALE_S = 3600.0
 
 
 def kernel_sources(folder: Path = PACKAGE) -> Iterable[Path]:
@@ -69,11 +74,16 @@ def cache_folder(environ: Mapping[str, str] = os.environ,
     return None, tried
 
 
+def last_written(folder: Path) -> float:
+    """Return the time anything in ``folder`` was last written (its own mtime if empty)."""
+    return max([p.stat().st_mtime for p in folder.rglob('*')] + [folder.stat().st_mtime])
+
+
 def use_cache(environ: Mapping[str, str] = os.environ, package: Path = PACKAGE) -> bool:
     """
     Point numba's cache at this version of the kernels; return False to compile in memory.
 
-    The folders of other versions of the kernels in the same place are removed.
+    The folders of other versions of the kernels in the same place are removed once stale.
     """
     # numba's settings are read from the environment at import: set at run time, not typed.
     if getattr(numba_config, 'DISABLE_JIT', False):
@@ -86,7 +96,7 @@ def use_cache(environ: Mapping[str, str] = os.environ, package: Path = PACKAGE) 
         return False
     folder = base / (PREFIX + digest(kernel_sources(package)))
     for old in base.glob(PREFIX + '*'):
-        if old != folder:
+        if old != folder and time.time() - last_written(old) > STALE_S:
             shutil.rmtree(old, ignore_errors=True)
     setattr(numba_config, 'CACHE_DIR', str(folder))
     return True
