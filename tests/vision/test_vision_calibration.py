@@ -337,7 +337,8 @@ def test_the_plane_from_a_frame_of_a_clip(tmp_path, capsys):
 
 
 def test_no_perspective_warning_on_a_square_climb(capsys):
-    """A 10 deg climb filmed square, slope not given: the spacing does not change, no warning.
+    """
+    A 10 deg climb filmed square, slope not given: the spacing does not change, no warning.
 
     (Taken from the tracker's own positions, the frames before the track's direction was known
     read the spacing 1.5 % short, cos 10 deg: a perspective that was not there.)
