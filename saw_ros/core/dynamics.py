@@ -33,7 +33,7 @@ from saw_ros.core import stability
 from saw_ros.core.contact import ContactLaw, ContactState, NORMAL, OFFSET_X, OFFSET_Y, Param
 from saw_ros.core.contact import PENETRATION, press_tips, SEEN, TANGENTIAL, X
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
-from saw_ros.core.flexure import flex_advance, flex_links, flex_restore, FLEX_ON, FLEX_ROWS
+from saw_ros.core.flexure import flex_advance, flex_links, FLEX_ON, flex_restore, FLEX_ROWS
 from saw_ros.core.flexure import flexure_constants
 from saw_ros.core.jit import CACHE
 from saw_ros.core.kinematics import check_no_interference, place_tips, TipRateTable, TipTable
@@ -394,8 +394,9 @@ class Simulator:
         if not hasattr(self, '_flex_state'):
             self._flex_state = np.zeros((self.count, FLEX_ROWS, self.table.count // 2))
         else:
-            self._flex_state[(flex[:, FLEX_ON] > 0.0) & (self._flex[:, FLEX_ON] == 0.0)] = 0.0
-        self._flex = flex
+            was_on: np.ndarray = self._flex[:, FLEX_ON] > 0.0
+            self._flex_state[(flex[:, FLEX_ON] > 0.0) & ~was_on] = 0.0
+        self._flex: np.ndarray = flex
         if self.walls is not None and (self._flex[:, FLEX_ON] > 0.0).any():
             raise ParameterError('flexure.stiffness > 0 with bending walls (surface.'
                                  'foundation_stiffness > 0): the flexures are not yet coupled '

@@ -4,11 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.core.contact import ContactLaw
+from saw_ros.core.contact import ContactLaw, NORMAL
+from saw_ros.core.dynamics import Simulator
 from saw_ros.core.flexure import balance_links, contact_law, elastic_law, Flexures, replay_links
 from saw_ros.core.flexure import transmissibility
-from saw_ros.core.contact import NORMAL
-from saw_ros.core.dynamics import Simulator
 from saw_ros.core.params import FlexureParams, ParameterError, Scenario, SurfaceParams
 
 TPU = FlexureParams(stiffness=2000.0, damping=0.5, link_mass=0.004)     # docs/model.md, TPU
