@@ -366,8 +366,19 @@ class FlexureParams(_Validated):
     stiffness: float = spec(0.0, 'N/m', "stiffness of a link's flexure normal to the backbone; "
                             "0 = rigid links (the paper's robot)", 0.0, 1e9)
     damping: float = spec(0.0, 'N s/m', "viscous damping of a link's flexure", 0.0, 1e3)
-    link_mass: float = spec(0.004, 'kg', 'mass of one wave link (part of robot.mass)', 0.0,
-                            0.1, low_open=True)
+    # From 0.1 g: at 1e-300 kg the link's propagator overflowed (-c / 2m) to a non-finite state.
+    link_mass: float = spec(0.004, 'kg', 'mass of one wave link (part of robot.mass)', 1e-4,
+                            0.1)
+
+    # Softer than 1 N/m a link sags more than its own weight can bear in the model (4 g: 4 cm);
+    # at 1e-300 the step's compliance 1 / k overflowed (ZeroDivisionError in the kernel).
+    SOFTEST = 1.0
+
+    def _check(self) -> None:
+        if 0.0 < self.stiffness < self.SOFTEST:
+            raise ParameterError(
+                f'flexure.stiffness = {self.stiffness:g} N/m is invalid: 0 (rigid links) or at '
+                f'least {self.SOFTEST:g} N/m')
 
 
 @dataclass(frozen=True)

@@ -210,3 +210,13 @@ def test_flexures_switched_on_during_a_run_start_at_rest():
     assert not sim._flex_state.any()
     sim.run(0.05)
     assert np.abs(sim._flex_state[0, 0]).max() > 0
+
+
+@pytest.mark.parametrize('values, message', [
+    ({'flexure.stiffness': 1e-300}, 'at least 1 N/m'),
+    ({'flexure.link_mass': 1e-300}, 'flexure.link_mass = 1e-300 is out of range'),
+])
+def test_flexures_beyond_the_model_are_refused(values, message):
+    """Found at the ranges' ends: 1 / k and -c / 2m overflowed in the kernel."""
+    with pytest.raises(ParameterError, match=message):
+        Scenario().with_values(values)
