@@ -351,6 +351,16 @@ class WallDynamicsParams(_Validated):
     damping: float = spec(0.0, 'N s/m^2', 'viscous damping of the foundation per metre of wall',
                           0.0, 1e6)
 
+    # Lighter than this (but not 0, the quasi-static wall) the modes' propagator overflows
+    # (-c / 2m, as the flexures' did at 1e-300 kg).
+    LIGHTEST = 1e-6
+
+    def _check(self) -> None:
+        if 0.0 < self.mass < self.LIGHTEST:
+            raise ParameterError(
+                f'walls.mass = {self.mass:g} kg/m is invalid: 0 (quasi-static walls) or at '
+                f'least {self.LIGHTEST:g} kg/m')
+
 
 @dataclass(frozen=True)
 class FlexureParams(_Validated):

@@ -6,7 +6,7 @@ import pytest
 
 from saw_ros.core.dynamic_walls import critical_speed, DynamicWall, mode_propagator
 from saw_ros.core.dynamic_walls import moving_load_deflection, ring_down
-from saw_ros.core.params import SurfaceParams, WallDynamicsParams
+from saw_ros.core.params import ParameterError, SurfaceParams, WallDynamicsParams
 from saw_ros.core.walls import deflection, point_deflection
 
 K, EI, M = 9e3, 1.2e-5, 0.13                # the soft-tissue set of docs/walls.md, 0.13 kg/m
@@ -171,3 +171,9 @@ def test_the_propagator_is_the_oscillators_exact_step_at_any_stiffness():
         # Stable: no mode grows.
         for n in range(stiffness.size):
             assert np.abs(np.linalg.eigvals(phi[:, n].reshape(2, 2))).max() <= 1.0 + 1e-12
+
+
+def test_walls_too_light_for_the_step_are_refused():
+    with pytest.raises(ParameterError, match='at least 1e-06 kg/m'):
+        WallDynamicsParams(mass=1e-300)
+    assert WallDynamicsParams(mass=0.0).mass == 0.0
