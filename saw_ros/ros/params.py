@@ -275,7 +275,8 @@ def yaml_text(node_name: str, header: str, own: Iterable[Tuple[str, object, obje
     for name, value, comment in own:
         if isinstance(comment, dict):
             comment = spec_comment(value, comment)
-        lines += textwrap.wrap(str(comment), 95, initial_indent='    # ', subsequent_indent='    # ')
+        lines += textwrap.wrap(str(comment), 95, initial_indent='    # ',
+                               subsequent_indent='    # ')
         lines.append(f'    {name}: {_yaml_value(value)}')
     section = None
     for name, value, meta in (scenario.describe() if with_scenario else ()):

@@ -49,7 +49,6 @@ def test_simulator_node_ladder_climbs_past_5(tmp_path, monkeypatch, limit):
     json.dumps(out)
 
 
-
 class _Hog:
     """Stands in for a CPU hog process: it must be killed and waited for."""
 

@@ -58,7 +58,7 @@ def test_imports_point_down_only(layer):
 
 
 def ros_imports(path: Path):
-    """Every import of a ROS module (or a *_msgs package) in a file, at the top or in a function."""
+    """Yield each import of a ROS module or *_msgs package in a file, at top level or in a def."""
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             names = [node.module]

@@ -101,7 +101,7 @@ def reproduce(out_dir, figures: Sequence[str] = FIGURES, quick: bool = False,
         from saw_ros.analysis.calibrate import trained_claims_of
         defaults = Scenario().flat()
         cal = Calibrated(cal_path, {k: v for k, v in cal_base.flat().items()
-                                            if v != defaults[k]},
+                                    if v != defaults[k]},
                          trained_claims_of(calibrated), cal_data, claims_mod.evaluate(cal_data))
         data.timings['calibrated_s'] = time.perf_counter() - t0
     if bar is not None:

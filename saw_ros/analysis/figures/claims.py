@@ -61,7 +61,7 @@ def _drop(values):
 
 
 def _needed_above_deg(external_force: float, mu: float) -> float:
-    """The slope (deg) above which the top surface must press; inf when never within 90 deg."""
+    """Return the slope (deg) above which the top surface must press; inf if never to 90 deg."""
     a = top_surface_needed_above(external_force, mu)
     return math.inf if a is None else math.degrees(a)
 

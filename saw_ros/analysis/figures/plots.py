@@ -78,7 +78,7 @@ def figure4(data: Data, out: Path) -> List[Path]:
 
 
 def _timeseries(data: Data) -> dict:
-    """The time series of Figures 7 and 8; a ValueError saying so when it was not computed."""
+    """Return the time series of Figures 7 and 8; a ValueError saying so when not computed."""
     if data.timeseries is None:
         raise ValueError('Figures 7 and 8 need the time series, which was not computed')
     return data.timeseries
