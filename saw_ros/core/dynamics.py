@@ -700,13 +700,15 @@ class Simulator:
         trace[row, :, 8] = self.current
 
 
+@functools.lru_cache(maxsize=1)
 def warm_up() -> None:
     """
-    Compile the step's kernels into the disk cache (core.jit), or load them: a second or two.
+    Compile the step's kernels into the disk cache (core.jit), or load them: once a process.
 
     One scenario stepped once (``advance``: the simulator node's path) and a batch of two, one
     with bending walls and a motor, run long enough for the parallel kernel
-    (``advance_in_parallel``). scripts/bootstrap.sh calls it after installing.
+    (``advance_in_parallel``). scripts/bootstrap.sh calls it after installing, LocalPool before
+    it forks.
     """
     Simulator(Scenario()).step()
     bending = Scenario().with_values({'surface.foundation_stiffness': 1.5e5,

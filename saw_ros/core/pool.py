@@ -62,8 +62,8 @@ class LocalPool:
     """
     Forked processes on this machine (``workers`` of them); in this process when 1.
 
-    A fresh fork per ``map``: the children inherit the modules and tables already built, so
-    nothing but the jobs and the results is pickled.
+    A fresh fork per ``map``: the children inherit the modules, tables and compiled kernels
+    already built, so nothing but the jobs and the results is pickled.
     """
 
     def __init__(self, workers: int = 1):
@@ -83,6 +83,10 @@ class LocalPool:
                 yield function(job)
             return
         import multiprocessing
+        # The children inherit the compiled kernels if this process has them: else every child
+        # of every map would load them from the disk cache again (about half a second each).
+        from saw_ros.core.dynamics import warm_up
+        warm_up()
         with multiprocessing.get_context('fork').Pool(processes) as pool:
             yield from pool.imap(function, jobs)
 
