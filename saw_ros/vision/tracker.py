@@ -36,6 +36,7 @@ from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
 
+from saw_ros.vision import perspective
 from saw_ros.vision.acquisition import Acquisition
 from saw_ros.vision.association import _Track, Association
 from saw_ros.vision.camera import CameraModel
@@ -51,6 +52,8 @@ __all__ = ['Candidate', 'Counters', 'detect', 'FrameResult', 'scale_from_spacing
 SLOPE_WARN = math.radians(2.0)     # a given slope this far from the motion is warned about
 ZOOM_WARN = 0.01          # the picture's scale changing by this much is warned about
 ROLL_WARN = math.radians(0.5)      # ... its roll by this much
+PLACES = 3600             # ok frames whose marker places the perspective check keeps (1 min)
+PLACES_EVERY = 30         # ... checked again after this many more
 
 
 class Tracker(Acquisition, Association, Measurement):
@@ -82,6 +85,10 @@ class Tracker(Acquisition, Association, Measurement):
         self._switches = 0              # static pairs dropped for a moving one
         self._seen_moving = False       # a pair has been seen moving: no static pair after it
         self.switched_at: Optional[float] = None    # when a static pair was last dropped
+        # ok frames' marker places (scene-frame ideal px): the perspective along the track
+        self._places: Deque[Tuple[complex, complex]] = deque(maxlen=PLACES)
+        self._placed = 0                # places kept so far, all told
+        self._along: Tuple[int, Optional[perspective.AlongTrack]] = (0, None)
         self._forget()
 
     def _forget(self) -> None:
@@ -159,10 +166,36 @@ class Tracker(Acquisition, Association, Measurement):
         if self.initialised and not self._confirmed and self.counters.ok:
             out.append('the pair tracked has not moved: a robot at rest, or two pink things '
                        'that are not its markers (nothing else pink moved as a pair)')
+        along = self.perspective()
+        if along is not None and along.significant:
+            out.append(perspective.warning(along, f'{self.camera.scale:.1f} px/m'))
         if not self.slope_known and self._direction is None and self.counters.ok:
             out.append(f'the track direction is not known: the markers did not move '
                        f'{DIRECTION_PX:g} px (no steady speed without --slope-deg)')
         return out
+
+    def perspective(self) -> Optional[perspective.AlongTrack]:
+        """
+        Return what the markers' spacing says of a perspective along the track (None: unknown).
+
+        Only for a camera without a plane (a plane takes the perspective out); from the ok
+        frames' marker places, along the track's direction, refitted every PLACES_EVERY frames.
+        """
+        slope = self.slope_used
+        if self.camera.plane is not None or slope is None:
+            return None
+        count, along = self._along
+        if self._placed >= count + PLACES_EVERY:
+            direction = complex(math.cos(slope), math.sin(slope))
+            if self.camera.mirror:
+                direction = -direction.conjugate()
+            cx, cy = self.camera.principal_point
+            places = np.array(self._places)
+            z = (places.real - cx) - 1j * (places.imag - cy)       # level picture frame, y up
+            a = (z * direction.conjugate()).real / self.camera.scale
+            along = perspective.fit(a[:, 0], a[:, 1])
+            self._along = (self._placed, along)
+        return along
 
     @property
     def notes(self) -> List[str]:
@@ -193,6 +226,7 @@ class Tracker(Acquisition, Association, Measurement):
                 track.p += delta
         self._chains = [(q + delta, deque((h + delta for h in hist), maxlen=hist.maxlen))
                         for q, hist in self._chains]
+        self._places = deque(((f + delta, b + delta) for f, b in self._places), maxlen=PLACES)
         self.camera = camera
 
     def reset(self) -> None:
@@ -261,6 +295,9 @@ class Tracker(Acquisition, Association, Measurement):
             res.spacing_px = abs(self._vector)
             self._spacing = _learn(self._spacing, res.spacing_px)
             self._last_px = (found['front'].p, found['back'].p)
+            if not ambiguous and not partial:
+                self._places.append((found['front'].q, found['back'].q))
+                self._placed += 1
         lost = [name for name in MARKERS if found[name] is None]
         if ambiguous:
             res.status = TrackStatus.AMBIGUOUS

@@ -40,7 +40,7 @@ import numpy as np
 from saw_ros.cli.checks import number, output_file, spec_number, video_input
 from saw_ros.cli.errors import UserError
 from saw_ros.core.params import spec_entries
-from saw_ros.vision import calibration, perspective
+from saw_ros.vision import calibration
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.offline import measure_plane, measure_scale, SCALE_FRAMES  # noqa: F401
 from saw_ros.vision.offline import track_video
@@ -338,17 +338,12 @@ def _plane(args, camera_kw: dict, size) -> np.ndarray:
 
 def scale_warnings(results, tracker, px_per_m: float, spacing) -> list:
     """
-    Return what a single given scale gets wrong, one line each (empty: nothing seen).
+    Return what a given scale gets wrong, one line each (empty: nothing seen).
 
-    The markers' spacing changing along the track (a perspective); a given marker spacing that
-    the scale measures otherwise, by more than the spacing's own spread over the frames.
+    A given marker spacing that the scale measures otherwise, by more than the spacing's own
+    spread over the frames.
     """
-    out = []
-    slope = tracker.slope_used
-    along = None if slope is None else perspective.fit(*perspective.along_track(
-        results, tracker.camera, slope))
-    if along is not None and along.significant:
-        out.append(perspective.warning(along, f'--px-per-m {px_per_m:g}'))
+    out = []        # (a perspective along the track: the tracker's own warnings say it)
     if spacing is not None:
         check = scale_from_spacing(results, spacing)
         if check is not None:
