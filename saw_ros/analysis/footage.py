@@ -29,7 +29,7 @@ import csv
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -158,6 +158,7 @@ class Measured:
     window: float                   # s the speed was measured over
     frames: int
     frames_ok: int
+    perspective: str = ''           # the tracker's warning of a perspective along the track
 
 
 def clip_speed(t, x, frequency: float) -> tuple:
@@ -185,14 +186,14 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
     """
     import dataclasses
 
-    from saw_ros.vision import calibration
+    from saw_ros.vision import calibration, perspective
     from saw_ros.vision.camera import CameraModel
     from saw_ros.vision.offline import measure_plane, open_source, track_video
     from saw_ros.vision.tracker import TrackerConfig
     config = config or TrackerConfig()
     if run.marker_spacing is not None:
         config = dataclasses.replace(config, marker_spacing=run.marker_spacing)
-    camera_kw = {'slope': math.radians(run.slope_deg), 'center_x': center_x}
+    camera_kw: Dict[str, Any] = {'slope': math.radians(run.slope_deg), 'center_x': center_x}
     try:
         if run.camera_calibration is not None:
             camera_kw.update(calibration.read_lens(run.camera_calibration).camera_kw())
@@ -217,7 +218,10 @@ def measure(run: FootageRun, frequency: float, config=None, center_x: float = 0.
     results, tracker = track_video(run.video, dict(camera_kw, scale=scale), config, run.fps)
     ok = [r for r in results if r.ok]
     speed, window = clip_speed([r.t for r in ok], [r.position.real for r in ok], frequency)
-    return Measured(results, scale, source, speed, window, len(results), len(ok))
+    along = tracker.perspective()
+    seen = perspective.warning(along, f'{source} {scale:.1f} px/m') \
+        if along is not None and along.significant else ''
+    return Measured(results, scale, source, speed, window, len(results), len(ok), seen)
 
 
 def simulate_conditions(scenarios: Sequence[Scenario]) -> List[tuple]:
@@ -280,6 +284,8 @@ def run_footage(runs: Sequence[FootageRun], base: Optional[Scenario] = None, con
                     f'a speed: look at the tracking with saw-ros track {run.video} --px-per-m '
                     f'{m.px_per_m:g} --plot track.png')
             cond.note = f'{cond.note}; {lost}' if cond.note else lost
+        if m.perspective:
+            cond.note = f'{cond.note}; {m.perspective}' if cond.note else m.perspective
         out.append(FootageResult(run, cond, m))
         if progress is not None:
             progress(1)

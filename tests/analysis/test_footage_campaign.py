@@ -120,3 +120,21 @@ def test_a_calibrated_camera_in_the_manifest(tmp_path):
     manifest.write_text('video,slope_deg,frequency_hz,fps,plane\nrun,0,1.5,30,none.yaml\n')
     with pytest.raises(ManifestError, match='plane: no such file'):
         load_manifest(manifest)
+
+
+def test_a_perspective_with_one_scale_is_in_the_notes(tmp_path):
+    """px_per_m for a camera yawed 18 deg: the condition's note says so (the tables show it)."""
+    import cv2
+
+    from saw_ros.analysis.footage import run_footage
+    from saw_ros.vision.footage import Shot
+    shot = Shot(duration=2.5, fps=30.0, width=640, height=360, scale=600.0, yaw_deg=18.0,
+                pitch_deg=10.0, quality=90)
+    (tmp_path / 'run').mkdir()
+    for k, _, frame in shot.frames():
+        cv2.imwrite(str(tmp_path / 'run' / f'{k:03d}.png'), frame)
+    manifest = tmp_path / 'm.csv'
+    manifest.write_text('video,slope_deg,frequency_hz,fps,px_per_m\nrun,0,1.5,30,580\n')
+    result, = run_footage(load_manifest(manifest))
+    assert 'perspective' in result.condition.note and 'calibrate the plane' in \
+        result.condition.note
