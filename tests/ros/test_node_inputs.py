@@ -69,6 +69,8 @@ CASES = {
                      True),
     'speed_controller': ({}, 'target_sped', ('target_speed', 1, '[-0.5, 0.5] m/s'),
                          ('kp', 'high', 'must be a number in'), False),
+    'foxglove_bridge': ({'port': 0}, 'prot', ('port', 70000, '[0, 65535]'),
+                        ('hold_until_clock', 'maybe', 'must be true or false'), False),
 }
 
 
