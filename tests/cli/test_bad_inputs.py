@@ -202,6 +202,10 @@ CASES = [
     ('bag reindex {d}/dir', 'holds no .mcap file'),
     ('bag info {d}/dir', 'holds no .mcap file'),
     ('bag frobnicate', "invalid choice: 'frobnicate'"),
+    # sros2-policy
+    ('sros2-policy --out {d}/text.txt/policy.xml', '--out {d}/text.txt/policy.xml: cannot write'),
+    ('sros2-policy --out {d}/dir', '--out {d}/dir: cannot write'),
+    ('sros2-policy --enclave x', 'unrecognized arguments: --enclave x'),
 ]
 
 
