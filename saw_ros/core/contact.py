@@ -178,8 +178,10 @@ def press_tips(law: np.ndarray, tips: np.ndarray) -> None:
         ft = max(min(trial, cap), -cap)
         # Sticking tips keep their anchor (x + Ft / (kt g) equals it); slipping tips drag it so
         # that the spring holds exactly mu Fn; free tips get Ft = 0 and a new anchor when they
-        # touch. The stretch remembered for the next rate is the spring's after the slip.
-        offset = ft / gain
+        # touch. The stretch remembered for the next rate is the spring's after the slip. A
+        # spring unloading with e -> 0 has no stiffness left (gain 0, ft 0): it sticks, and
+        # keeps its anchor (0 / 0 stopped the kernel at e = 5e-324).
+        offset = ft / gain if gain != 0.0 else anchor - x
         tips[STRETCH, p] = abs(offset)
         tips[ANCHOR, p] = offset + x
         tips[TRIAL, p], tips[CAP, p] = trial, cap

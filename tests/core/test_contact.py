@@ -64,3 +64,18 @@ def test_slow_deformation_is_a_smooth_damper_not_a_switch():
     rates = np.array([-1.0, -V0, -V0 / 2, 0.0, V0 / 2, V0, 1.0])
     factor = hysteresis_factor(rates, E, V0)
     np.testing.assert_allclose(factor, [E, E, (3 * E + 1) / 4, (1 + E) / 2, (E + 3) / 4, 1, 1])
+
+
+def test_a_spring_with_no_stiffness_left_keeps_its_anchor():
+    """
+    e -> 0 (5e-324: 1 - e rounds to 1): an unloading shear spring's gain is exactly 0.
+
+    Ft is then 0 and Ft / gain is 0 / 0; the tip sticks with its anchor where it was, so when
+    the stretch grows again the spring pulls from that anchor (kt times the stretch, loading).
+    """
+    # Touch at x = 0, stretch to 1 mm, relax to 0.5 mm fast (gain 0), stretch again.
+    xs = [0.0, 0.001, 0.0005, 0.0006]
+    out = drive(np.full(len(xs), 0.004), xs, e=5e-324)
+    assert np.isfinite(out[:, :2]).all()
+    assert out[2, 1] == 0.0                            # unloading: no stiffness, no force
+    assert out[3, 1] == pytest.approx(-KT * 0.0006)    # loading again, from the old anchor
