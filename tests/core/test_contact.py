@@ -68,7 +68,7 @@ def test_slow_deformation_is_a_smooth_damper_not_a_switch():
 
 def test_a_spring_with_no_stiffness_left_keeps_its_anchor():
     """
-    e -> 0 (5e-324: 1 - e rounds to 1): an unloading shear spring's gain is exactly 0.
+    Restitution e -> 0 (5e-324: 1 - e rounds to 1) leaves an unloading shear spring no gain.
 
     Ft is then 0 and Ft / gain is 0 / 0; the tip sticks with its anchor where it was, so when
     the stretch grows again the spring pulls from that anchor (kt times the stretch, loading).
