@@ -43,6 +43,13 @@ def clips(tmp_path_factory):
     return out
 
 
+# The clips play at half speed (their stamps, on /clock, are the video's): what these tests ask
+# is what the node makes of the footage, not whether it keeps 60 fps while the parallel suite's
+# other workers hold both cores (at 1.0 it tracked 144 of 240 frames then; the bench measures
+# its rate).
+RATE = 0.5
+
+
 def _run(path, shot, ros_context, tmp_path, **params):
     """Return (steady speed messages, status messages) of the vision node on a clip."""
     from diagnostic_msgs.msg import DiagnosticArray
@@ -69,7 +76,7 @@ def _run(path, shot, ros_context, tmp_path, **params):
     probe.create_subscription(DiagnosticArray, '/saw/tracking/status', got['status'].append,
                               STREAM_QOS)
     source = ManagedProcess('video_source', node_command(
-        'video_source', params={'path': str(path), 'publish_clock': True,
+        'video_source', params={'path': str(path), 'publish_clock': True, 'rate': RATE,
                                 'wait_for_subscribers': 1}), dict(os.environ), tmp_path)
     spin = lambda t: executor.spin_once(timeout_sec=t)   # noqa: E731
     frames = len(shot.times)
