@@ -175,6 +175,25 @@ def _plt():
     return plt
 
 
+def _sweep_figure(rows: List[Dict[str, Any]], columns: Tuple[str, ...], csv: Path,
+                  lower: Callable[[Dict[str, Any]], float]) -> Tuple[Any, Any, Any]:
+    """
+    Write ``rows`` to ``csv`` and start the sweep's figure: (figure, top axes, bottom axes).
+
+    One line a damping ratio against the stiffness: the reduction on top, ``lower`` of each row
+    below; the callers label the axes.
+    """
+    lines = [','.join(columns)] + [','.join(f'{r[c]:.6g}' for c in columns) for r in rows]
+    csv.write_text('\n'.join(lines) + '\n')
+    fig, (top, bottom) = _plt().subplots(2, 1, figsize=(7.5, 7.0), sharex=True)
+    for ratio in sorted({r['damping_ratio'] for r in rows}):
+        mine = [r for r in rows if r['damping_ratio'] == ratio]
+        k = [r['stiffness'] for r in mine]
+        top.semilogx(k, [r['reduction_pct'] for r in mine], 'o-', label=f'damping ratio {ratio:g}')
+        bottom.semilogx(k, [lower(r) for r in mine], 'o-')
+    return fig, top, bottom
+
+
 def printed_rows(run: RigidRun, link_mass: float) -> List[Dict[str, Any]]:
     """Return the sweep's row of each printed set of docs/compliant_robot.md (PRINTED)."""
     rigid = float(np.std(steady(run, rigid_force(run))))
@@ -188,15 +207,8 @@ def write_report(rows: List[Dict[str, float]], printed: List[Dict[str, Any]], ru
     out.mkdir(parents=True, exist_ok=True)
     columns = ('stiffness', 'damping_ratio', 'damping', 'vibration', 'reduction_pct',
                'largest_deflection_mm', 'settle_mm')
-    lines = [','.join(columns)] + [','.join(f'{r[c]:.6g}' for c in columns) for r in rows]
-    (out / 'compliant.csv').write_text('\n'.join(lines) + '\n')
-    plt = _plt()
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.5, 7.0), sharex=True)
-    for ratio in sorted({r['damping_ratio'] for r in rows}):
-        mine = [r for r in rows if r['damping_ratio'] == ratio]
-        k = [r['stiffness'] for r in mine]
-        top.semilogx(k, [r['reduction_pct'] for r in mine], 'o-', label=f'damping ratio {ratio:g}')
-        bottom.semilogx(k, [r['largest_deflection_mm'] for r in mine], 'o-')
+    fig, top, bottom = _sweep_figure(rows, columns, out / 'compliant.csv',
+                                     lambda r: r['largest_deflection_mm'])
     for r in printed:
         top.plot(r['stiffness'], r['reduction_pct'], 'k*', markersize=12)
         top.annotate(r['name'], (r['stiffness'], r['reduction_pct']), textcoords='offset points',
@@ -214,7 +226,7 @@ def write_report(rows: List[Dict[str, float]], printed: List[Dict[str, Any]], ru
                  f'm/s^2 RMS')
     fig.tight_layout()
     fig.savefig(out / 'compliant.png', dpi=110)
-    plt.close(fig)
+    _plt().close(fig)
     check = rigid_check(run)
     best = max((r for r in rows if r['largest_deflection_mm'] < 1000.0 * base.robot.amplitude),
                key=lambda r: r['reduction_pct'], default=None)
@@ -323,15 +335,8 @@ def write_closed_loop(result: Dict[str, Any], base: Scenario, out: Path) -> None
     rows, rigid, best = result['rows'], result['rigid'], result['best']
     columns = ('stiffness', 'damping_ratio', 'speed', 'speed_share', 'vibration',
                'rigid_vibration_same_speed', 'reduction_pct', 'energy_per_m')
-    lines = [','.join(columns)] + [','.join(f'{r[c]:.6g}' for c in columns) for r in rows]
-    (out / 'closed_loop.csv').write_text('\n'.join(lines) + '\n')
-    plt = _plt()
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.5, 7.0), sharex=True)
-    for ratio in sorted({r['damping_ratio'] for r in rows}):
-        mine = [r for r in rows if r['damping_ratio'] == ratio]
-        k = [r['stiffness'] for r in mine]
-        top.semilogx(k, [r['reduction_pct'] for r in mine], 'o-', label=f'damping ratio {ratio:g}')
-        bottom.semilogx(k, [100.0 * r['speed_share'] for r in mine], 'o-')
+    fig, top, bottom = _sweep_figure(rows, columns, out / 'closed_loop.csv',
+                                     lambda r: 100.0 * r['speed_share'])
     top.axhline(30.0, color='grey', ls='--', lw=0.8)
     top.axhline(0.0, color='k', lw=0.6)
     top.set_ylabel('vibration reduction at equal speed, %')
@@ -345,7 +350,7 @@ def write_closed_loop(result: Dict[str, Any], base: Scenario, out: Path) -> None
                  f'{rigid["vibration"]:.3f} m/s^2 RMS at {100 * rigid["speed"]:.2f} cm/s')
     fig.tight_layout()
     fig.savefig(out / 'closed_loop.png', dpi=110)
-    plt.close(fig)
+    _plt().close(fig)
     worse = [r for r in rows if math.isfinite(r['reduction_pct']) and r['reduction_pct'] < 0.0]
     answer = ('No flexure of the sweep keeps 95 % of the rigid speed with a reduction.'
               if best is None else
