@@ -11,6 +11,7 @@ Every node runs as its own process in the run's isolated DDS domain (tests/conft
 bad inputs end it before it spins, so a node's cases run side by side.
 """
 import importlib
+import json
 import os
 from pathlib import Path
 import subprocess
@@ -97,36 +98,92 @@ def _filled(params, paths):
     return {k: v.format(**paths) if isinstance(v, str) else v for k, v in params.items()}
 
 
+# The mistakes decided from the command line alone (runtime.check_command_line, before rclpy
+# starts) are the same code in every node: each node's main meets them in one process, its
+# output (fd 1 and 2, rcutils writes the FATAL line itself) in a file per case, which saves
+# starting 27 interpreters. Values only a started node can judge run as real executables below.
+COMMAND_LINE_RUNNER = """
+import importlib, json, os, sys
+codes = []
+for node, argv, cwd, out in json.loads(sys.argv[1]):
+    module = importlib.import_module('saw_ros.ros.nodes.' + node)
+    sys.stdout.flush(); sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    fd = os.open(out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+    os.dup2(fd, 1); os.dup2(fd, 2)
+    os.chdir(cwd)
+    try:
+        codes.append(module.main(args=argv))
+    finally:
+        sys.stdout.flush(); sys.stderr.flush()
+        os.dup2(saved[0], 1); os.dup2(saved[1], 2); os.close(fd)
+print(json.dumps(codes))
+"""
+
+
+def _mains(cases, tmp_path):
+    """Run ``(node, argv, cwd)`` cases through each node's main in one process; (code, out)s."""
+    runs = [(node, argv, str(cwd), str(tmp_path / f'out_{i}.txt'))
+            for i, (node, argv, cwd) in enumerate(cases)]
+    proc = subprocess.run([sys.executable, '-c', COMMAND_LINE_RUNNER, json.dumps(runs)],
+                          env=dict(os.environ), stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, text=True,
+                          timeout=TIMEOUT, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout
+    codes = json.loads(proc.stdout.splitlines()[-1])
+    return [(code, Path(out).read_text()) for code, (_, _, _, out) in zip(codes, runs)]
+
+
+def _one_fatal_line(node, case, code, out, texts):
+    lines = [line for line in out.splitlines() if line.strip()]
+    assert code == 1, (case, out)
+    assert 'Traceback' not in out and len(lines) == 1, (case, out)
+    assert lines[0].startswith('[FATAL]') and f'[{node}]:' in lines[0], (case, lines[0])
+    for text in texts:
+        assert text in lines[0], (case, text, lines[0])
+
+
+def test_command_line_mistakes_end_every_node_with_one_line(tmp_path):
+    """A params file missing or not YAML, an argument not ROS's: every node's main refuses."""
+    cases, expected = [], []
+    for node in sorted(CASES):
+        ok = _filled(CASES[node][0], {'tmp': tmp_path / node, 'bag': tmp_path / 'no_bag',
+                                      'frames': tmp_path / 'no_frames'})
+        not_yaml = tmp_path / f'{node}_not_yaml.yaml'
+        not_yaml.write_text(f'{node}:\n  ros__parameters: [a, b\n')
+        missing = tmp_path / f'{node}_missing.yaml'
+        table = {
+            'params file missing': (node_command(node, params=ok, params_file=missing),
+                                    (f'params file {missing} does not exist',)),
+            'params file not YAML': (node_command(node, params=ok, params_file=not_yaml),
+                                     (f'params file {not_yaml} is not YAML', 'at line')),
+            'unknown argument': ([sys.executable, '-m', node, '--frobnicate'],
+                                 ('unknown argument --frobnicate', '--ros-args')),
+        }
+        for case, (argv, texts) in table.items():
+            cases.append((node, [node] + argv[3:], tmp_path))
+            expected.append((node, case, texts))
+    for (node, case, texts), (code, out) in zip(expected, _mains(cases, tmp_path)):
+        _one_fatal_line(node, case, code, out, texts)
+    assert not any((tmp_path / node).exists() for node in CASES)   # nothing created
+
+
 @pytest.mark.parametrize('node', sorted(CASES))
-def test_bad_input_ends_the_node_with_one_line(node, tmp_path):
+def test_a_bad_value_ends_the_node_with_one_line(node, tmp_path):
+    """Out of range and of the wrong type, through the real executable: exit 1, one line."""
     ok, _, (low, value, allowed), (name, wrong, kind), _ = CASES[node]
     paths = {'tmp': tmp_path, 'bag': tmp_path / 'no_bag', 'frames': tmp_path / 'no_frames'}
     ok = _filled(ok, paths)
-    not_yaml = tmp_path / 'not_yaml.yaml'
-    not_yaml.write_text(f'{node}:\n  ros__parameters: [a, b\n')
-    missing = tmp_path / 'missing.yaml'
-    module = [sys.executable, '-m', f'saw_ros.ros.nodes.{node}']
     table = {   # case: (argv, texts the one line holds)
         'out of range': (node_command(node, params=dict(ok, **{low: value})),
                          (f'{low} = ', 'out of range', f'allowed {allowed}')),
         'wrong type': (node_command(node, params=dict(ok, **{name: wrong})),
                        (f'{name} = {wrong!r} is invalid', kind)),
-        'params file missing': (node_command(node, params=ok, params_file=missing),
-                                (f'params file {missing} does not exist',)),
-        'params file not YAML': (node_command(node, params=ok, params_file=not_yaml),
-                                 (f'params file {not_yaml} is not YAML', 'at line')),
-        'unknown argument': (module + ['--frobnicate'], ('unknown argument --frobnicate',
-                                                         '--ros-args')),
     }
     procs = {case: _start(argv, tmp_path) for case, (argv, _) in table.items()}
     for case, proc in procs.items():
         code, out = _finish(proc)
-        lines = [line for line in out.splitlines() if line.strip()]
-        assert code == 1, (case, out)
-        assert 'Traceback' not in out and len(lines) == 1, (case, out)
-        assert lines[0].startswith('[FATAL]') and f'[{node}]:' in lines[0], (case, lines[0])
-        for text in table[case][1]:
-            assert text in lines[0], (case, text, lines[0])
+        _one_fatal_line(node, case, code, out, table[case][1])
     assert not (tmp_path / 'bag').exists()          # the recorder refused before creating it
 
 
@@ -161,15 +218,7 @@ def _entries(node):
     return list(module.parameters() if hasattr(module, 'parameters') else module.PARAMETERS)
 
 
-@pytest.mark.parametrize('node', sorted(CASES))
-def test_help_lists_the_parameters_and_starts_nothing(node, tmp_path):
-    work = tmp_path / 'cwd'
-    work.mkdir()
-    flag = '-h' if node in ('camera', 'player', 'vision') else '--help'
-    script = Path(sys.executable).parent / node      # the console script, as ros2 run runs it
-    argv = [str(script)] if node == 'recorder' and script.exists() else \
-        [sys.executable, '-m', f'saw_ros.ros.nodes.{node}']
-    code, out = _finish(_start(argv + [flag], work))
+def _check_help(node, code, out, work):
     assert code == 0, out
     assert out.startswith(f'usage: {node} '), out
     assert '[INFO]' not in out and 'Traceback' not in out, out
@@ -184,6 +233,29 @@ def test_help_lists_the_parameters_and_starts_nothing(node, tmp_path):
             assert f'default {default!r}' in line, line
         if meta.get('unit'):
             assert f'[{meta["unit"]}]' in line, line
+
+
+def test_help_lists_the_parameters_and_starts_nothing(tmp_path):
+    """Every node's -h or --help, each in a folder of its own that stays empty."""
+    cases = []
+    for node in sorted(CASES):
+        work = tmp_path / node
+        work.mkdir()
+        flag = '-h' if node in ('camera', 'player', 'vision') else '--help'
+        cases.append((node, [node, flag], work))
+    for (node, _, work), (code, out) in zip(cases, _mains(cases, tmp_path)):
+        _check_help(node, code, out, work)
+
+
+def test_help_from_the_console_script(tmp_path):
+    """The console script ros2 run starts (bin/recorder), as a real process."""
+    script = Path(sys.executable).parent / 'recorder'
+    if not script.exists():
+        pytest.skip(f'no console script at {script} (the package is not installed here)')
+    work = tmp_path / 'cwd'
+    work.mkdir()
+    code, out = _finish(_start([str(script), '--help'], work))
+    _check_help('recorder', code, out, work)
 
 
 def test_simulator_help_publishes_nothing(tmp_path, ros_context):
