@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import glob
 import io
 import os
+import re
 import struct
 from typing import Callable, Dict, Iterable, Iterator, List, Optional
 import zlib
@@ -37,6 +38,7 @@ _MESSAGE = struct.Struct('<HIQQ')         # channel id, sequence, log time, publ
 _U32, _U64 = struct.Struct('<I'), struct.Struct('<Q')
 _FOOTER_OP, _SCHEMA, _CHANNEL, _MESSAGE_OP, _CHUNK_OP = 0x02, 0x03, 0x04, 0x05, 0x06
 _MESSAGE_INDEX, _CHUNK_INDEX, _STATISTICS, _DATA_END = 0x07, 0x08, 0x0B, 0x0F
+_SPLIT_FILE = re.compile(r'(.*)_(\d+)\.mcap')
 _MAX_CHUNK = 1 << 32     # larger uncompressed sizes are damage, not allocations to try
 
 
@@ -415,6 +417,16 @@ class _Scan:
         self.ordinal = {offset: i + 1 for i, offset in enumerate(self.chunk_offsets)}
 
 
+def split_order(name: str) -> tuple:
+    """
+    Sort key putting a split bag's files in the order written: ``run_2.mcap`` before ``run_10``.
+
+    rosbag2 names them ``<bag>_<n>.mcap``, n from 0; other names sort by name, after them.
+    """
+    match = _SPLIT_FILE.fullmatch(os.path.basename(name))
+    return (0, match.group(1), int(match.group(2))) if match else (1, name, 0)
+
+
 class BagReader:
     def __init__(self, path: str, salvage: bool = False):
         path = os.path.abspath(path)
@@ -429,9 +441,10 @@ class BagReader:
                 self.metadata = read_metadata(meta_path)
                 names = self.metadata.get('relative_file_paths') or []
                 self.files = [inside(path, n, meta_path) for n in names]
-            else:
+            else:   # a recorder killed: no metadata.yaml yet; its split files in their order
                 self.files = [inside(path, os.path.basename(n), path)
-                              for n in sorted(glob.glob(os.path.join(path, '*.mcap')))]
+                              for n in sorted(glob.glob(os.path.join(path, '*.mcap')),
+                                              key=split_order)]
             if not self.files:
                 raise BagReadError(f'{path} holds no .mcap file (not a bag directory)')
         else:
@@ -465,6 +478,10 @@ class BagReader:
     def complete(self) -> bool:
         """Return False once a scan met an unfinished file (no summary: recorder killed)."""
         return not any(n is not None for n in self._tail.values())
+
+    def finished(self, path: str) -> bool:
+        """Return True if the last scan of file ``path`` found it finished and undamaged."""
+        return path in self._tail and self._tail[path] is None and not self._damage.get(path)
 
     @property
     def unread_bytes(self) -> int:

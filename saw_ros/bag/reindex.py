@@ -74,15 +74,13 @@ def reindex(path: str) -> Reindexed:
             raise BagReadError(f'{path_ + SUFFIX} exists (an earlier reindex kept the original '
                                'there): move it away first')
     topics: Dict[str, list] = {}
-    start = end = None
-    names = []
+    files = []
     for path_ in reader.files:
-        first, last = _rewrite(path_, topics)
-        if first is not None:
-            start = first if start is None else min(start, first)
-            end = last if end is None else max(end, last)
-        names.append(os.path.basename(path_))
-        result.kept.append(os.path.basename(path_) + SUFFIX)
+        # A split bag's files finished before the recorder was killed stay as they are.
+        finished = reader.finished(path_)
+        files.append((os.path.basename(path_),) + _rewrite(path_, topics, copy=not finished))
+        if not finished:
+            result.kept.append(os.path.basename(path_) + SUFFIX)
     # Topics metadata.yaml listed without a message left keep their entry.
     for entry in (reader.metadata or {}).get('topics_with_message_count') or []:
         meta = entry['topic_metadata']
@@ -91,60 +89,78 @@ def reindex(path: str) -> Reindexed:
             meta.get('offered_qos_profiles') or [], meta.get('type_description_hash', ''), 0])
     custom = dict((reader.metadata or {}).get('custom_data') or {})
     custom['saw_ros.reindexed'] = result.missing
-    info = bag_metadata(names[0], [tuple(t) for t in topics.values()], start, end, custom)
-    if len(names) > 1:
-        info['relative_file_paths'] = names
-        info['files'] = [{'path': n} for n in names]
+    info = bag_metadata(files, [tuple(t) for t in topics.values()], custom)
     _write_metadata(directory, info)
     result.counts = {name: t[5] for name, t in topics.items()}
     return result
 
 
-def _rewrite(path: str, topics: Dict[str, list]):
+def _rewrite(path: str, topics: Dict[str, list], copy: bool = True):
     """
     Copy the readable messages of ``path`` into a finished file put in its place.
 
-    ``topics`` gains each topic's metadata.yaml entry; returns the first and last log time.
+    ``topics`` gains each topic's metadata.yaml entry and count; returns the file's first and
+    last log time and its message count. ``copy`` False only counts (a file already finished).
     """
+    if not copy:
+        return _tally(BagReader(path).messages(), topics)
     directory = os.path.dirname(path)
     temporary = inside(directory, f'.{os.path.basename(path)}.reindexing', directory)
     if os.path.lexists(temporary):          # left by an interrupted reindex: ours to replace
         os.remove(temporary)
-    first = last = None
     with open(temporary, 'xb') as stream:
         writer = Writer(stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD,
                         enable_data_crcs=True)
         writer.start(profile='ros2', library='saw_ros reindex (mcap-python)')
         schemas: Dict[int, int] = {}
         channels: Dict[int, int] = {}
-        for m in BagReader(path, salvage=True).messages():
-            channel = channels.get(m.channel.id)
-            if channel is None:
-                schema = 0
-                if m.schema is not None:
-                    known = schemas.get(m.schema.id)
-                    if known is None:
-                        known = schemas[m.schema.id] = writer.register_schema(
-                            m.schema.name, m.schema.encoding, m.schema.data)
-                    schema = known
-                channel = channels[m.channel.id] = writer.register_channel(
-                    m.topic, m.channel.message_encoding, schema, dict(m.channel.metadata))
-                topics.setdefault(m.topic, [
-                    m.topic, m.type, m.channel.message_encoding, channel_qos(m.channel),
-                    m.channel.metadata.get('topic_type_hash', ''), 0])
-            writer.add_message(channel, m.log_time, m.data, m.publish_time, m.sequence)
-            topics[m.topic][5] += 1
-            first = m.log_time if first is None else first
-            last = m.log_time
-        counts = [(t[0], t[1], t[2], t[3], t[4], t[5]) for t in topics.values()]
-        writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(
-            bag_metadata(os.path.basename(path), counts, first, last, None))})
+        file_topics: Dict[str, list] = {}
+
+        def copied():
+            for m in BagReader(path, salvage=True).messages():
+                channel = channels.get(m.channel.id)
+                if channel is None:
+                    schema = 0
+                    if m.schema is not None:
+                        known = schemas.get(m.schema.id)
+                        if known is None:
+                            known = schemas[m.schema.id] = writer.register_schema(
+                                m.schema.name, m.schema.encoding, m.schema.data)
+                        schema = known
+                    channel = channels[m.channel.id] = writer.register_channel(
+                        m.topic, m.channel.message_encoding, schema, dict(m.channel.metadata))
+                writer.add_message(channel, m.log_time, m.data, m.publish_time, m.sequence)
+                yield m
+
+        first, last, count = _tally(copied(), file_topics)
+        for name, entry in file_topics.items():
+            topics.setdefault(name, entry[:5] + [0])[5] += entry[5]
+        writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(bag_metadata(
+            [(os.path.basename(path), first, last, count)],
+            [tuple(t) for t in file_topics.values()], None))})
         writer.finish()
         stream.flush()
         os.fsync(stream.fileno())
     os.replace(path, path + SUFFIX)
     os.replace(temporary, path)
-    return first, last
+    return first, last, count
+
+
+def _tally(messages, topics: Dict[str, list]):
+    """Count ``messages`` per topic into ``topics``; return their first, last log time, count."""
+    first = last = None
+    count = 0
+    for m in messages:
+        entry = topics.get(m.topic)
+        if entry is None:
+            entry = topics[m.topic] = [
+                m.topic, m.type, m.channel.message_encoding, channel_qos(m.channel),
+                m.channel.metadata.get('topic_type_hash', ''), 0]
+        entry[5] += 1
+        first = m.log_time if first is None else first
+        last = m.log_time
+        count += 1
+    return first, last, count
 
 
 def _write_metadata(directory: str, info: dict) -> None:

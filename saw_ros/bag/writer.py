@@ -37,7 +37,7 @@ from collections import deque
 import os
 import threading
 import time
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Tuple
 
 from mcap.writer import CompressionType, Writer
 from saw_ros.bag.schema import message_definition, type_hash
@@ -55,6 +55,8 @@ _FLUSH_BATCH_NS = 20_000_000
 # Once no message has come for this long, the buffer goes to the file (the publishers stopped:
 # a kill -9 now loses only the open chunk, as without the buffer).
 DEFAULT_IDLE_FLUSH_S = 1.0
+# A limit never reached (int, so that the split test in _add is two integer comparisons).
+_NO_LIMIT = 1 << 63
 # RMW_DURATION_INFINITE as rosbag2 writes it.
 INFINITE = {'sec': 9223372036, 'nsec': 854775807}
 ROS_DISTRO = 'jazzy'
@@ -79,23 +81,24 @@ def qos_profile_dict(history='unknown', depth=0, reliability='reliable', durabil
             'avoid_ros_namespace_conventions': bool(avoid_ros_namespace_conventions)}
 
 
-def bag_metadata(file_name: str, topics, start: Optional[int], end: Optional[int],
-                 custom_data: Optional[Dict[str, str]]) -> dict:
+def bag_metadata(files, topics, custom_data: Optional[Dict[str, str]]) -> dict:
     """
-    Return the ``rosbag2_bagfile_information`` mapping (metadata.yaml version 9) of one file.
+    Return the ``rosbag2_bagfile_information`` mapping (metadata.yaml version 9).
 
-    ``topics``: (name, type, serialization format, offered QoS profiles, type hash, message
-    count) each; ``start``/``end``: log times of the first and last message (None: no message).
+    ``files``: (file name, log time of its first message, of its last, message count) each, in
+    the order they were written (start and end None: no message); ``topics``: (name, type,
+    serialization format, offered QoS profiles, type hash, message count) each.
     """
-    first = start if start is not None else time.time_ns()
-    duration = (end - start) if start is not None and end is not None else 0
-    count = sum(t[5] for t in topics)
+    starts = [f[1] for f in files if f[1] is not None]
+    ends = [f[2] for f in files if f[2] is not None]
+    first = min(starts) if starts else time.time_ns()
+    duration = max(ends) - first if starts and ends else 0
     return {
         'version': 9,
         'storage_identifier': 'mcap',
         'duration': {'nanoseconds': duration},
         'starting_time': {'nanoseconds_since_epoch': first},
-        'message_count': count,
+        'message_count': sum(t[5] for t in topics),
         'topics_with_message_count': [
             {'topic_metadata': {'name': name, 'type': type_name,
                                 'serialization_format': serialization_format,
@@ -105,11 +108,14 @@ def bag_metadata(file_name: str, topics, start: Optional[int], end: Optional[int
             for name, type_name, serialization_format, qos, hash_string, n in topics],
         'compression_format': '',
         'compression_mode': '',
-        'relative_file_paths': [file_name],
-        'files': [{'path': file_name,
-                   'starting_time': {'nanoseconds_since_epoch': first},
-                   'duration': {'nanoseconds': duration},
-                   'message_count': count}],
+        'relative_file_paths': [f[0] for f in files],
+        'files': [{'path': name,
+                   'starting_time': {'nanoseconds_since_epoch': (
+                       start if start is not None else first)},
+                   'duration': {'nanoseconds': (
+                       end - start if start is not None and end is not None else 0)},
+                   'message_count': count}
+                  for name, start, end, count in files],
         'custom_data': custom_data,
         'ros_distro': ROS_DISTRO,
     }
@@ -183,11 +189,13 @@ class _UnbufferedFile:
 
 class _Topic:
     __slots__ = ('name', 'type', 'serialization_format', 'qos', 'hash', 'channel_id', 'count',
-                 'pending')
+                 'pending', 'channel_metadata')
 
-    def __init__(self, name, type_name, serialization_format, qos, hash_string, channel_id):
+    def __init__(self, name, type_name, serialization_format, qos, hash_string, channel_id,
+                 channel_metadata):
         self.name, self.type, self.serialization_format = name, type_name, serialization_format
         self.qos, self.hash, self.channel_id, self.count = qos, hash_string, channel_id, 0
+        self.channel_metadata = channel_metadata
         # Reorder buffer of this topic, in log_time order: (log_time, arrival number, channel id,
         # data, publish_time, sequence).
         self.pending: deque = deque()
@@ -195,7 +203,14 @@ class _Topic:
 
 class BagWriter:
     """
-    Write one bag directory ``<directory>/metadata.yaml`` + ``<name>_0.mcap``.
+    Write one bag directory ``<directory>/metadata.yaml`` + ``<name>_0.mcap`` (+ ``_1``...).
+
+    Split as ``ros2 bag record --max-bag-size / --max-bag-duration`` splits: before a message
+    whose file already holds ``max_bag_size`` bytes (0: no limit), or whose log time is more than
+    ``max_bag_duration_ns`` after the file's first message (0: no limit), the file is finished
+    (summary, indexes, rosbag2 Metadata record) and ``<name>_<n+1>.mcap`` started with every
+    schema and channel registered again (same ids). mcap's Writer keeps an index entry per chunk
+    until it finishes a file, so a limit bounds the memory a long recording takes.
 
     >>> bag = BagWriter('bags/run')                              # doctest: +SKIP
     >>> bag.add_topic('/saw/pose', 'geometry_msgs/msg/PoseStamped', [qos_profile_dict()])
@@ -207,30 +222,32 @@ class BagWriter:
                  compression: str = 'zstd', custom_data: Optional[Dict[str, str]] = None,
                  reorder_window_ns: int = DEFAULT_REORDER_WINDOW_NS,
                  max_buffer_bytes: int = DEFAULT_MAX_BUFFER_BYTES,
-                 idle_flush_s: Optional[float] = DEFAULT_IDLE_FLUSH_S):
-        check_writable_target(directory)
-        self.directory = os.path.abspath(directory)
-        self.name = os.path.basename(self.directory.rstrip('/'))
-        self.file_name = f'{self.name}_0.mcap'
-        try:
-            os.makedirs(self.directory)
-            self._stream = _UnbufferedFile(os.path.join(self.directory, self.file_name))
-        except OSError as exc:
-            raise BagWriteError(f'cannot create {self.directory}: {exc}') from exc
+                 idle_flush_s: Optional[float] = DEFAULT_IDLE_FLUSH_S,
+                 max_bag_size: int = 0, max_bag_duration_ns: int = 0):
         if compression not in ('zstd', 'none', ''):
             raise ValueError(f'compression must be zstd or none, not {compression!r}')
         if reorder_window_ns < 0 or max_buffer_bytes < 0:
             raise ValueError('reorder_window_ns and max_buffer_bytes must be >= 0')
-        # (mcap's stub asks for an IO; its Writer calls write and tell only, which we have)
-        self._mcap = Writer(self._stream, chunk_size=chunk_size,  # type: ignore[arg-type]
-                            compression=(CompressionType.ZSTD if compression == 'zstd'
-                                         else CompressionType.NONE),
-                            enable_data_crcs=True)
-        self._mcap.start(profile='ros2', library='saw_ros (mcap-python)')
+        if max_bag_size < 0 or max_bag_duration_ns < 0:
+            raise ValueError('max_bag_size and max_bag_duration_ns must be >= 0 (0: no limit)')
+        check_writable_target(directory)
+        self.directory = os.path.abspath(directory)
+        self.name = os.path.basename(self.directory.rstrip('/'))
+        self._chunk_size = chunk_size
+        self._compression = (CompressionType.ZSTD if compression == 'zstd'
+                             else CompressionType.NONE)
+        self.max_bag_size = int(max_bag_size) or _NO_LIMIT
+        self.max_bag_duration_ns = int(max_bag_duration_ns) or _NO_LIMIT
+        # Files finished so far: (name, first log time, last log time, message count).
+        self.files: List[Tuple[str, Optional[int], Optional[int], int]] = []
         self._schemas: Dict[str, int] = {}
+        self._schema_data: Dict[str, bytes] = {}
         self._topics: Dict[str, _Topic] = {}
-        self._start: Optional[int] = None
-        self._end: Optional[int] = None
+        try:
+            os.makedirs(self.directory)
+        except OSError as exc:
+            raise BagWriteError(f'cannot create {self.directory}: {exc}') from exc
+        self._open_file()
         self.message_count = 0
         self.custom_data = custom_data
         self.closed = False
@@ -258,6 +275,47 @@ class BagWriter:
                                                  name='bag-idle-flush', daemon=True)
             self._idle_thread.start()
 
+    # ---- files
+    def _open_file(self) -> None:
+        """Start ``<name>_<n>.mcap``, n the files finished so far; register what is known."""
+        self.file_name = f'{self.name}_{len(self.files)}.mcap'
+        try:
+            self._stream = _UnbufferedFile(os.path.join(self.directory, self.file_name))
+        except OSError as exc:
+            raise BagWriteError(f'cannot create {self.file_name} in {self.directory}: '
+                                f'{exc}') from exc
+        # (mcap's stub asks for an IO; its Writer calls write and tell only, which we have)
+        self._mcap = Writer(self._stream, chunk_size=self._chunk_size,  # type: ignore[arg-type]
+                            compression=self._compression, enable_data_crcs=True)
+        self._mcap.start(profile='ros2', library='saw_ros (mcap-python)')
+        self._file_start: Optional[int] = None
+        self._file_end: Optional[int] = None
+        self._file_count = 0
+        # Registered in the order of the first file, so the ids are the same in every file.
+        for type_name, schema_id in self._schemas.items():
+            again = self._mcap.register_schema(name=type_name, encoding='ros2msg',
+                                               data=self._schema_data[type_name])
+            assert again == schema_id, (type_name, again, schema_id)
+        for topic in self._topics.values():
+            again = self._mcap.register_channel(
+                topic=topic.name, message_encoding=topic.serialization_format,
+                schema_id=self._schemas[topic.type], metadata=topic.channel_metadata)
+            assert again == topic.channel_id, (topic.name, again, topic.channel_id)
+
+    def _finish_file(self) -> None:
+        """Finish the open file: rosbag2 Metadata record (the bag so far), summary, indexes."""
+        self.files.append((self.file_name, self._file_start, self._file_end, self._file_count))
+        try:
+            self._mcap.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(
+                self._metadata(self.files))})
+            self._mcap.finish()
+        finally:
+            self._stream.close()
+
+    def _split(self) -> None:
+        self._finish_file()
+        self._open_file()
+
     # ---- topics and messages
     def add_topic(self, name: str, type_name: str, offered_qos_profiles: List[dict],
                   serialization_format: str = 'cdr') -> int:
@@ -270,18 +328,18 @@ class BagWriter:
             return self._topics[name].channel_id
         schema_id = self._schemas.get(type_name)
         if schema_id is None:
-            schema_id = self._mcap.register_schema(
-                name=type_name, encoding='ros2msg',
-                data=message_definition(type_name).encode('utf-8'))
-            self._schemas[type_name] = schema_id
+            data = message_definition(type_name).encode('utf-8')
+            schema_id = self._mcap.register_schema(name=type_name, encoding='ros2msg', data=data)
+            self._schemas[type_name], self._schema_data[type_name] = schema_id, data
         hash_string = type_hash(type_name)
         qos = [dict(p) for p in offered_qos_profiles]
+        metadata = {'offered_qos_profiles': dump_yaml(qos).rstrip('\n') if qos else '',
+                    'topic_type_hash': hash_string}
         channel_id = self._mcap.register_channel(
             topic=name, message_encoding=serialization_format, schema_id=schema_id,
-            metadata={'offered_qos_profiles': dump_yaml(qos).rstrip('\n') if qos else '',
-                      'topic_type_hash': hash_string})
+            metadata=metadata)
         self._topics[name] = _Topic(name, type_name, serialization_format, qos, hash_string,
-                                    channel_id)
+                                    channel_id, metadata)
         return channel_id
 
     def write(self, topic: str, data: bytes, log_time: int, publish_time: Optional[int] = None,
@@ -372,25 +430,42 @@ class BagWriter:
             self._add([oldest.popleft()])
 
     def _add(self, items) -> None:
-        """Hand messages (in log_time order, none older than the last written) to mcap."""
+        """
+        Hand messages (in log_time order, none older than the last written) to mcap.
+
+        A message past the open file's size or duration limit goes to a new file.
+        """
         add, stream = self._mcap.add_message, self._stream
         written, position, closed = self._written, self._position, self._chunk_closed
-        size = 0
+        size_limit = self.max_bag_size
+        stamp_limit = (_NO_LIMIT if self._file_start is None
+                       else self._file_start + self.max_bag_duration_ns)
+        size = in_file = 0
         for stamp, _, channel_id, data, publish_time, sequence in items:
             before = stream.position
             if stamp <= written:
                 # A tie with the last written message (or a late one raised to it): if a chunk
                 # was closed after that one, 1 ns later (chunks sharing a time overlap for mcap)
                 stamp = written + (closed or before != position)
+            if (before >= size_limit or stamp > stamp_limit) and (in_file or self._file_count):
+                self._file_count += in_file
+                self._file_end = written
+                self._split()
+                add, stream, in_file = self._mcap.add_message, self._stream, 0
+                before = position = stream.position
+                stamp_limit = _NO_LIMIT
+            if self._file_start is None:
+                self._file_start = stamp
+                stamp_limit = stamp + self.max_bag_duration_ns
             add(channel_id, stamp, data, publish_time, sequence)
             position = stream.position
             closed = position != before
             written = stamp
             size += len(data)
+            in_file += 1
         if items:
-            if self._start is None:
-                self._start = items[0][0]
-            self._end = written
+            self._file_count += in_file
+            self._file_end = written
             self._written, self._position, self._chunk_closed = written, position, closed
             self._buffered_bytes -= size
             self.buffered -= len(items)
@@ -398,10 +473,14 @@ class BagWriter:
     # ---- metadata
     def metadata(self) -> dict:
         """Return the ``rosbag2_bagfile_information`` mapping (metadata.yaml version 9)."""
+        files = self.files if self.closed and self.files else self.files + [
+            (self.file_name, self._file_start, self._file_end, self._file_count)]
+        return self._metadata(files)
+
+    def _metadata(self, files) -> dict:
         return bag_metadata(
-            self.file_name, [(t.name, t.type, t.serialization_format, t.qos, t.hash, t.count)
-                             for t in self._topics.values()],
-            self._start, self._end, self.custom_data)
+            files, [(t.name, t.type, t.serialization_format, t.qos, t.hash, t.count)
+                    for t in self._topics.values()], self.custom_data)
 
     def close(self) -> None:
         """
@@ -421,11 +500,11 @@ class BagWriter:
             self._raise_idle_error()
         try:
             self._flush_until(1 << 63)
-            info = self.metadata()
-            self._mcap.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(info)})
-            self._mcap.finish()
-        finally:
+        except BaseException:
             self._stream.close()
+            raise
+        self._finish_file()
+        info = self._metadata(self.files)
         tmp = os.path.join(self.directory, '.metadata.yaml.tmp')
         with open(tmp, 'w', encoding='utf-8') as f:
             f.write(dump_yaml({'rosbag2_bagfile_information': info}))

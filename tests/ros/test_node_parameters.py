@@ -155,6 +155,12 @@ def test_recorder_parameters_are_read_only(tmp_path, ros_context):
 def test_recorder_refuses_invalid_values_at_start(tmp_path):
     refused_at_start(start(tmp_path, 'recorder', output=str(tmp_path / 'bag'), queue_depth=0),
                      'queue_depth = 0 is out of range: allowed [1, inf)')
+    # The split limits: 0 (no limit) is their low end; one below it is refused.
+    refused_at_start(start(tmp_path, 'recorder', output=str(tmp_path / 'bag'), max_bag_size=-1),
+                     'max_bag_size = -1 is out of range: allowed [0, inf) bytes')
+    refused_at_start(start(tmp_path, 'recorder', output=str(tmp_path / 'bag'),
+                           max_bag_duration=-0.001),
+                     'max_bag_duration = -0.001 is out of range: allowed [0, inf) s')
     assert not (tmp_path / 'bag').exists()
 
 

@@ -15,6 +15,11 @@ ROS parameters:
                         simulator's publishers keep; PUBLISHER_DEPTH)
   compression string    ``zstd`` (default) or ``none``
   chunk_size  int       bytes per MCAP chunk (default 786432, rosbag2's)
+  max_bag_size int      split: a new file ``<bag>_<n>.mcap`` once the open one holds this many
+                        bytes (default 1 GiB; 0: no limit), as ros2 bag record --max-bag-size
+  max_bag_duration float split: a new file before a message more than this many seconds after
+                        its file's first (default 600; 0: no limit); both bound the recorder's
+                        memory (mcap keeps an index entry per chunk until a file is finished)
 
 Subscriptions are raw: the CDR bytes are written as received, never re-serialised. A callback
 takes every message waiting on its subscription (the executor's per-message cost dominates
@@ -77,6 +82,17 @@ PARAMETERS = (
     ('chunk_size', 768 * 1024, spec_meta('bytes', 'bytes per MCAP chunk', 1, None)),
     ('discovery_period', 0.25, spec_meta('s', 'seconds between looks for new topics', 0.0, None,
                                          low_open=True)),
+    # Split files as ros2 bag record --max-bag-size / --max-bag-duration (rosbag2's default is
+    # one file). Ours split by default: mcap's Writer keeps an index entry (~2.3 KB) per chunk
+    # until its file is finished, so one file grew the recorder 0.9 MB a minute in the main
+    # graph's soak (14.6 % in 30 min at real-time factor 0.5). A limit makes that grow with one
+    # file, not with the run: 1 GiB or 10 min, whichever comes first (the soak's 5 MB/s of
+    # mostly JPEG: a file every ~3.5 min, ~1400 chunks, ~3 MB of index).
+    ('max_bag_size', 1 << 30, spec_meta('bytes', 'start a new file of the bag once the open one '
+                                                 'holds this many bytes (0: no limit)', 0, None)),
+    ('max_bag_duration', 600.0, spec_meta('s', 'start a new file before a message more than '
+                                               "this after its file's first (0: no limit)",
+                                          0.0, None)),
 )
 YAML_HEADER = """\
 Parameters of the saw_ros recorder node (MCAP bags that ros2 bag opens):
@@ -263,8 +279,11 @@ class Recorder(Node):
             self.get_parameter('bags_dir').value, self.get_parameter('label').value)
         try:
             check_definitions()  # before creating anything: else one line saying what to source
-            self.bag = BagWriter(output, chunk_size=int(self.get_parameter('chunk_size').value),
-                                 compression=self.get_parameter('compression').value)
+            self.bag = BagWriter(
+                output, chunk_size=int(self.get_parameter('chunk_size').value),
+                compression=self.get_parameter('compression').value,
+                max_bag_size=int(self.get_parameter('max_bag_size').value),
+                max_bag_duration_ns=round(1e9 * self.get_parameter('max_bag_duration').value))
         except (BagWriteError, UnknownMessageType, ValueError) as exc:
             raise NodeFailure(f'refusing to record: {exc}') from None
         self._depth = int(self.get_parameter('queue_depth').value)
