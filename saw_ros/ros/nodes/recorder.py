@@ -16,9 +16,9 @@ ROS parameters:
   compression string    ``zstd`` (default) or ``none``
   chunk_size  int       bytes per MCAP chunk (default 786432, rosbag2's)
   max_bag_size int      split: a new file ``<bag>_<n>.mcap`` once the open one holds this many
-                        bytes (default 1 GiB; 0: no limit), as ros2 bag record --max-bag-size
+                        bytes (default 512 MiB; 0: no limit), as ros2 bag record --max-bag-size
   max_bag_duration float split: a new file before a message more than this many seconds after
-                        its file's first (default 600; 0: no limit); both bound the recorder's
+                        its file's first (default 300; 0: no limit); both bound the recorder's
                         memory (mcap keeps an index entry per chunk until a file is finished)
 
 Subscriptions are raw: the CDR bytes are written as received, never re-serialised. A callback
@@ -85,12 +85,12 @@ PARAMETERS = (
     # Split files as ros2 bag record --max-bag-size / --max-bag-duration (rosbag2's default is
     # one file). Ours split by default: mcap's Writer keeps an index entry (~2.3 KB) per chunk
     # until its file is finished, so one file grew the recorder 0.9 MB a minute in the main
-    # graph's soak (14.6 % in 30 min at real-time factor 0.5). A limit makes that grow with one
-    # file, not with the run: 1 GiB or 10 min, whichever comes first (the soak's 5 MB/s of
-    # mostly JPEG: a file every ~3.5 min, ~1400 chunks, ~3 MB of index).
-    ('max_bag_size', 1 << 30, spec_meta('bytes', 'start a new file of the bag once the open one '
+    # graph's soak (14.6 % in 30 min at real-time factor 0.5: ~1.7 MB/s to disk, 390 chunks a
+    # minute). A limit makes that grow with one file, not with the run: 512 MiB or 5 min,
+    # whichever comes first, is at most ~4.5 MB of index there (2.5 % of the recorder's RSS).
+    ('max_bag_size', 512 << 20, spec_meta('bytes', 'start a new file of the bag once the open one '
                                                  'holds this many bytes (0: no limit)', 0, None)),
-    ('max_bag_duration', 600.0, spec_meta('s', 'start a new file before a message more than '
+    ('max_bag_duration', 300.0, spec_meta('s', 'start a new file before a message more than '
                                                "this after its file's first (0: no limit)",
                                           0.0, None)),
 )
