@@ -88,8 +88,9 @@ PARAMETERS = (
     # graph's soak (14.6 % in 30 min at real-time factor 0.5: ~1.7 MB/s to disk, 390 chunks a
     # minute). A limit makes that grow with one file, not with the run: 512 MiB or 5 min,
     # whichever comes first, is at most ~4.5 MB of index there (2.5 % of the recorder's RSS).
-    ('max_bag_size', 512 << 20, spec_meta('bytes', 'start a new file of the bag once the open one '
-                                                 'holds this many bytes (0: no limit)', 0, None)),
+    ('max_bag_size', 512 << 20, spec_meta('bytes', 'start a new file of the bag once the open '
+                                                   'one holds this many bytes (0: no limit)',
+                                          0, None)),
     ('max_bag_duration', 300.0, spec_meta('s', 'start a new file before a message more than '
                                                "this after its file's first (0: no limit)",
                                           0.0, None)),
