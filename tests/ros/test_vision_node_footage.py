@@ -4,8 +4,8 @@ The vision node on footage shot the way users shoot it (issue 21), through video
 Clips from our own generator (saw_ros.vision.footage: a textured room, red objects, a handheld
 camera, a climb) -> video_source (a process, publishing /clock) -> the vision node (use_sim_time,
 scale from px_per_m) -> /saw/tracking/*. The steady speed is the robot's, or the status says why
-not: a camera that drifts is compensated; a climb told the wrong slope is warned about on the
-status (level WARN); with slope_from_motion the slope comes from the markers' motion. Two pink
+not: a camera that drifts is compensated; on a climb, with slope_from_motion, the slope comes
+from the markers' motion (a wrong slope's warning is the tracker's test). Two pink
 things at rest in view before the robot is (the issue's node published ~0 cm/s with status ok
 for a robot at 7 cm/s: it had locked onto them and kept their spacing): WARN while they are
 tracked, dropped for the robot once it moves in view. Every wait is on a condition.
@@ -22,12 +22,15 @@ from saw_ros.vision.video import VideoWriter
 
 pytestmark = pytest.mark.ros
 
-PX_PER_M = 1200.0
+# Full-size frames: the camera motion is measured on the background's texture, which needs the
+# width (saw_ros.vision.egomotion warns below 960 px). No JPEG pass in the generator: the clips
+# are MP4s, and the pass would cost a quarter of their rendering.
+CLEAN = dict(quality=0)
 STEADY = 2.0            # s, the vision node's steady window (the clips are 4 s)
-CLIPS = {'handheld': Shot(duration=4.0, drift=(120.0, 20.0), jitter=1.0),
-         'climb': Shot(duration=4.0, slope_deg=20.0),
+CLIPS = {'handheld': Shot(duration=4.0, drift=(120.0, 20.0), jitter=1.0, **CLEAN),
+         'climb': Shot(duration=4.0, slope_deg=20.0, **CLEAN),
          # Two static pink discs in view from the start, the robot's back marker from 3.4 s.
-         'entering': Shot(duration=8.0, start_x=-0.6, pink_clutter=2)}
+         'entering': Shot(duration=8.0, start_x=-0.6, pink_clutter=2, **CLEAN)}
 
 
 @pytest.fixture(scope='module')
@@ -63,7 +66,7 @@ def _run(path, shot, ros_context, tmp_path, **params):
 
     vision = VisionNode(context=ros_context, parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('steady_window', value=STEADY),
-        Parameter('px_per_m', value=PX_PER_M), Parameter('center_x', value=0.0),
+        Parameter('px_per_m', value=shot.scale), Parameter('center_x', value=0.0),
         Parameter('center_y', value=shot.track_y),
         *(Parameter(k, value=v) for k, v in params.items())])
     probe = Node('probe', context=ros_context)
@@ -131,16 +134,12 @@ def test_a_drifting_camera_gives_the_robots_speed(clips, ros_context, tmp_path):
     assert values['warnings'] == '' and status[-1].status[0].level == _level('OK')
 
 
-def test_a_wrong_slope_is_warned_and_the_motion_gives_the_right_one(clips, ros_context, tmp_path):
+def test_on_a_climb_the_motion_gives_the_slope(clips, ros_context, tmp_path):
+    # slope_from_motion: the slope used is the motion's, the speed the robot's, no warning. (A
+    # climb told slope 0, cos(20) low and warned on every frame, is tracker behaviour:
+    # tests/vision/test_vision_footage.py; the node's WARN level for a warning is the static
+    # pair's test below.)
     shot = CLIPS['climb']
-    # slope 0 (the default) on a 20 degree climb: the speed along it is cos(20) low, and the
-    # status says so on every frame once the markers have moved far enough.
-    steady, status = _run(clips['climb'], shot, ros_context, tmp_path)
-    last = status[-1]
-    assert last.status[0].message == 'ok' and last.status[0].level == _level('WARN')
-    assert 'not along the given slope 0.0 deg' in _values(last)['warnings']
-    assert steady[-1].twist.linear.x < 0.95 * shot.speed
-    # slope_from_motion: the slope used is the motion's, the speed the robot's, no warning.
     steady, status = _run(clips['climb'], shot, ros_context, tmp_path, slope_from_motion=True)
     values = _values(status[-1])
     assert float(values['slope_deg']) == pytest.approx(20.0, abs=0.3)
