@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace as replace_camera
 import math
-from typing import Iterator, List, Optional, Tuple
+from typing import Iterator, List, Optional, Sequence, Tuple
 
 import cv2
 import numpy as np
@@ -448,29 +448,45 @@ def track_shot(shot: Shot, slope_known: bool = False, config: TrackerConfig = Tr
     ``slope_known``: the track's slope given (True) or taken from the motion (the default of the
     command); ``camera``: the camera the tracker is given, if not the shot's fixed camera.
     """
-    tracker = Tracker(camera or shot.camera(slope_known), config, slope_known=slope_known)
-    visible = ok_visible = wrong = 0
-    results = []
+    return track_shot_ways(shot, [(slope_known, config, camera)])[0]
+
+
+def track_shot_ways(shot: Shot, ways: Sequence[Tuple[bool, TrackerConfig,
+                                                     Optional[CameraModel]]]) -> List[ShotResult]:
+    """
+    Track one rendering of a shot with several trackers: ``track_shot`` for each of ``ways``.
+
+    Each way is (slope_known, config, camera); the frames are drawn once for all of them.
+    """
+    trackers = [Tracker(camera or shot.camera(slope_known), config, slope_known=slope_known)
+                for slope_known, config, camera in ways]
+    visible = 0
+    ok_visible = [0] * len(trackers)
+    wrong = [0] * len(trackers)
+    results: List[List[FrameResult]] = [[] for _ in trackers]
     for _, t, frame in shot.frames():
-        res = tracker.update(frame, t)
-        results.append(res)
         seen = shot.visible(t, 'front') and shot.visible(t, 'back')
-        right = False
-        if res.ok and res.front is not None and res.back is not None:
-            # The truth in the tracker's surface frame: the track's when the slope is used.
-            front, back = shot.truth(t)
-            right = max(abs(res.front - front), abs(res.back - back)) <= \
-                0.5 * shot.marker_diameter
-            wrong += not right
         visible += seen
-        ok_visible += seen and right
-    since = tracker.switched_at if tracker.switched_at is not None else -math.inf
-    speed = next((r.steady_speed for r in reversed(results)
-                  if r.steady_speed is not None and r.t > since), None)
-    error = math.inf if speed is None else \
-        100.0 * abs(speed - shot.mean_speed()) / shot.mean_speed()
-    return ShotResult(speed, error, visible, ok_visible, wrong, tracker.warnings, tracker.notes,
-                      tracker, results)
+        for i, tracker in enumerate(trackers):
+            res = tracker.update(frame, t)
+            results[i].append(res)
+            if res.ok and res.front is not None and res.back is not None:
+                # The truth in the tracker's surface frame: the track's when the slope is used.
+                front, back = shot.truth(t)
+                right = max(abs(res.front - front), abs(res.back - back)) <= \
+                    0.5 * shot.marker_diameter
+                wrong[i] += not right
+                ok_visible[i] += seen and right
+    out = []
+    for i, tracker in enumerate(trackers):
+        since = tracker.switched_at if tracker.switched_at is not None else -math.inf
+        speed = next((r.steady_speed for r in reversed(results[i])
+                      if r.steady_speed is not None and r.t > since), None)
+        error = math.inf if speed is None else \
+            100.0 * abs(speed - shot.mean_speed()) / shot.mean_speed()
+        out.append(ShotResult(speed, error, visible, ok_visible[i], wrong[i], tracker.warnings,
+                              tracker.notes, tracker, results[i]))
+    return out
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ import cv2
 import pytest
 
 from saw_ros.cli.main import main
-from saw_ros.vision.footage import Shot, track_shot
+from saw_ros.vision.footage import Shot, track_shot, track_shot_ways
 from saw_ros.vision.offline import measure_scale
 from saw_ros.vision.tracker import TrackerConfig
 
@@ -42,33 +42,35 @@ def test_a_fixed_camera_stays_fixed():
 
 def test_a_climb_without_the_slope_takes_the_motions_direction():
     shot = Shot(duration=4.5, slope_deg=20.0)
-    r = track_shot(shot, False, CONFIG)
+    # (one rendering, two trackers: the slope from the motion, and told a slope of 0)
+    r, told_level = track_shot_ways(shot, [(False, CONFIG, None),
+                                           (True, CONFIG, shot.camera(False))])
     assert math.degrees(r.tracker.slope_used) == pytest.approx(20.0, abs=0.2)
     assert r.speed == pytest.approx(shot.mean_speed(), rel=RIPPLE)
     assert r.warnings == []
     # Told a slope of 0: 6 % low, and said so.
-    r = track_shot(shot, True, CONFIG, camera=shot.camera(False))
-    assert r.speed == pytest.approx(shot.mean_speed() * math.cos(math.radians(20.0)), rel=RIPPLE)
-    assert any('not along the given slope 0.0 deg' in w for w in r.warnings)
+    assert told_level.speed == pytest.approx(shot.mean_speed() * math.cos(math.radians(20.0)),
+                                             rel=RIPPLE)
+    assert any('not along the given slope 0.0 deg' in w for w in told_level.warnings)
 
 
-@pytest.mark.parametrize('slope_known', [False, True])
-def test_the_robot_entering_over_red_and_pink_clutter(slope_known):
+def test_the_robot_entering_over_red_and_pink_clutter():
     """
     Red objects and two static pink discs in view before the robot enters from the left.
 
     Never a static pair once something moves; a pair taken while nothing moved (slope given)
     is dropped for the robot's markers as soon as they move together in view, with what was
-    learned of it.
+    learned of it. (One rendering, both trackers.)
     """
     shot = Shot(duration=7.5, start_x=-0.72, pink_clutter=2)
-    r = track_shot(shot, slope_known, CONFIG)
-    assert r.ok_frames_pct >= 95.0, (r.visible_frames, r.ok_visible_frames)
-    assert r.speed == pytest.approx(shot.mean_speed(), rel=RIPPLE)
-    if slope_known:
-        assert r.tracker.switched_at is not None and any('dropped' in n for n in r.notes)
-    else:
-        assert r.wrong_frames <= 10 and r.tracker.switched_at is None
+    from_motion, slope_known = track_shot_ways(shot, [(False, CONFIG, None),
+                                                      (True, CONFIG, None)])
+    for r in (from_motion, slope_known):
+        assert r.ok_frames_pct >= 95.0, (r.visible_frames, r.ok_visible_frames)
+        assert r.speed == pytest.approx(shot.mean_speed(), rel=RIPPLE)
+    assert slope_known.tracker.switched_at is not None and \
+        any('dropped' in n for n in slope_known.notes)
+    assert from_motion.wrong_frames <= 10 and from_motion.tracker.switched_at is None
 
 
 def test_a_partly_hidden_marker_is_not_measured():
