@@ -18,7 +18,7 @@ hundredths of a pixel).
 from __future__ import annotations
 
 import math
-from typing import List, Optional, Tuple
+from typing import Optional, Sequence, Tuple
 
 import cv2
 import numpy as np
@@ -30,8 +30,10 @@ AWAY_FRAMES = 3         # frames in a row away by FIXED_PX before the camera cou
 FIXED_PX = 0.5          # full-resolution px the picture must move (see AWAY_FRAMES)
 KEY_SHIFT = 0.15        # fraction of the picture's width: beyond this shift, a new key picture
 INLIER_PX = 0.5         # small px: a corner further than this from the fit is not background
-LK = {'winSize': (11, 11), 'maxLevel': 2,
-      'criteria': (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)}
+# Lucas-Kanade optical flow: its window (small px), pyramid levels and when it stops iterating.
+LK_WINDOW = (11, 11)
+LK_LEVELS = 2
+LK_STOP = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
 
 
 def _h(a: np.ndarray) -> np.ndarray:
@@ -79,9 +81,9 @@ class CameraMotion:
         self.largest_shift = 0.0      # px (full resolution) from the scene frame, largest
         self.zoom_range = [1.0, 1.0]  # smallest, largest scale of the picture to the scene
         self.roll_range = [0.0, 0.0]  # rad
-        self._key = None              # (grey picture, corners) of the key picture
+        # (grey picture, corners) of the key picture, and the corners where they were last seen
+        self._key: Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]] = None
         self._key_to_scene = np.eye(3)      # small px
-        self._guess = None            # the key's points where they were last seen
         self._to_scene = np.eye(3)    # current small px -> scene small px
         self._away = 0                # consecutive frames the fit says the camera moved
         d = float(self.d)
@@ -110,18 +112,17 @@ class CameraMotion:
                                               blockSize=5)
                 if pts is not None:
                     found.append(pts.reshape(-1, 2) + [x0, y0])
-        pts = np.concatenate(found).astype(np.float32).reshape(-1, 1, 2) if found else None
-        if pts is None or len(pts) < 2 * MIN_FEATURES:
+        if sum(len(f) for f in found) < 2 * MIN_FEATURES:
             self._key = None
             return False
-        self._key = (gray, pts)
+        corners = np.concatenate(found).astype(np.float32).reshape(-1, 1, 2)
+        self._key = (gray, corners, corners.copy())
         self._key_mean = cv2.mean(gray)[0]
-        self._guess = pts.copy()
         self._key_to_scene = self._to_scene.copy()
         return True
 
     def update(self, small: np.ndarray, width: int, height: int,
-               masks: List[Tuple[complex, complex, float]] = ()) -> Optional[np.ndarray]:
+               masks: Sequence[Tuple[complex, complex, float]] = ()) -> Optional[np.ndarray]:
         """
         Return the 3x3 transform full-resolution picture px -> scene px (identity while fixed).
 
@@ -136,21 +137,23 @@ class CameraMotion:
                 self.failed += 1
                 return None
             return self.transform
-        key, pts = self._key
+        key, pts, guess = self._key
         # Lighting that flickers changes the picture's gain, which Lucas-Kanade would take for
         # motion: the picture is brought to the key's mean brightness first.
         mean = cv2.mean(gray)[0]
         if mean > 0:
             gray = cv2.convertScaleAbs(gray, alpha=self._key_mean / mean)
-        nxt, status, _ = cv2.calcOpticalFlowPyrLK(key, gray, pts, self._guess.copy(),
-                                                  flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **LK)
+        nxt, status, _ = cv2.calcOpticalFlowPyrLK(key, gray, pts, guess.copy(),
+                                                  winSize=LK_WINDOW, maxLevel=LK_LEVELS,
+                                                  criteria=LK_STOP,
+                                                  flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
         good = status.ravel() == 1
         fit, inliers = _similarity(pts[good], nxt[good])
         if fit is None or inliers < AGREE * len(pts):
             self.failed += 1
             self._new_key(gray, masks)
             return None
-        self._guess[good] = nxt[good]
+        guess[good] = nxt[good]
         to_scene = self._key_to_scene @ np.linalg.inv(_h(fit))
         full = self._up @ to_scene @ self._down
         corners = np.array([[0.0, 0.0, 1.0], [width, height, 1.0]]).T

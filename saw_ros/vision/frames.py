@@ -28,7 +28,7 @@ from __future__ import annotations
 import bisect
 from dataclasses import dataclass
 import math
-from typing import Callable, Iterable, List, NamedTuple, Optional, Sequence
+from typing import Callable, Iterable, List, NamedTuple, Optional, Sequence, Tuple
 
 import cv2
 import numpy as np
@@ -147,7 +147,7 @@ class Renderer:
         self._background = self._make_background()
         self._frame = np.empty_like(self._background)
         self._noise = self._make_noise() if options.noise > 0 else None
-        self._accum = None
+        self._accum: Optional[np.ndarray] = None    # the motion blur's sum of sub-frames
         self._gradient = gradient_map(camera, scene) if scene.gradient > 0 else None
         self._lens = distortion_maps(camera) if camera.distorted else None
 
@@ -157,8 +157,9 @@ class Renderer:
         h, w = cam.height, cam.width
         if opt.texture:
             rng = np.random.default_rng(opt.seed + 1)
-            coarse = rng.normal(0.0, 1.0, (h // 32 + 2, w // 32 + 2)).astype(np.float32)
-            coarse = cv2.resize(coarse, (w, h), interpolation=cv2.INTER_CUBIC)
+            coarse = cv2.resize(
+                rng.normal(0.0, 1.0, (h // 32 + 2, w // 32 + 2)).astype(np.float32), (w, h),
+                interpolation=cv2.INTER_CUBIC)
             fine = cv2.GaussianBlur(rng.normal(0.0, 1.0, (h, w)).astype(np.float32), (0, 0), 1.5)
             grey = WALL + 18.0 * coarse + 10.0 * fine
             grey = np.clip(grey, 0, 255).astype(np.uint8)
@@ -172,7 +173,7 @@ class Renderer:
             self._fill(img, [body.rectangle(x0, x1, y0, y1)], BOARD)
         return img
 
-    def _make_noise(self) -> np.ndarray:
+    def _make_noise(self) -> Tuple[np.ndarray, np.ndarray]:
         """Return a pool of noise, split into positive and negative parts for saturating adds."""
         cam = self.camera
         pad = 32
@@ -364,19 +365,20 @@ class Renderer:
         t_frame = 0.0 if t is None else t
         brightness = opt.brightness * scene.gain(t_frame)
         if opt.exposure > 0 and opt.blur_samples > 1 and pose_at is not None and t is not None:
-            if self._accum is None:
-                self._accum = np.zeros((cam.height, cam.width, 3), np.float32)
-            self._accum[...] = 0.0
+            accum = self._accum
+            if accum is None:
+                accum = self._accum = np.zeros((cam.height, cam.width, 3), np.float32)
+            accum[...] = 0.0
             n = opt.blur_samples
             for k in range(n):
                 tk = t + opt.exposure * ((k + 0.5) / n - 0.5)
                 cv2.accumulate(self.draw(pose_at(tk), self._frame, hidden, tk, shape),
-                               self._accum)
+                               accum)
             if self._gradient is not None:
-                frame = cv2.multiply(self._accum, self._gradient, scale=brightness / n,
+                frame = cv2.multiply(accum, self._gradient, scale=brightness / n,
                                      dtype=cv2.CV_8U)
             else:
-                frame = cv2.convertScaleAbs(self._accum, alpha=brightness / n)
+                frame = cv2.convertScaleAbs(accum, alpha=brightness / n)
         elif self._gradient is None and brightness == 1.0:
             # Drawn straight into the new frame: a 1280x720 copy less per frame.
             frame = self.draw(pose, np.empty_like(self._frame), hidden, t_frame, shape)
@@ -412,18 +414,18 @@ class StampedSeries:
 
     def __init__(self, keep_ns: Optional[int] = None):
         self.keep_ns = None if keep_ns is None else int(keep_ns)
-        self.t: List[int] = []
+        self.t: List[float] = []
         self.v: List[tuple] = []
 
     @classmethod
-    def of(cls, t: Sequence[float], *columns: Sequence[float]) -> 'StampedSeries':
+    def of(cls, t: Iterable[float], *columns: Iterable[float]) -> 'StampedSeries':
         """Return a whole record at once: stamps ``t`` and one sequence per value column."""
         series = cls()
         series.t = [float(s) for s in t]
         series.v = list(zip(*(np.asarray(c, float).tolist() for c in columns)))
         return series
 
-    def add(self, t: int, values: tuple) -> bool:
+    def add(self, t: float, values: tuple) -> bool:
         """Append; False (and cleared) when time went backwards (a replay restarted)."""
         if self.t and t <= self.t[-1]:
             if t == self.t[-1]:
@@ -443,7 +445,7 @@ class StampedSeries:
         return True
 
     @property
-    def last(self) -> int:
+    def last(self) -> float:
         return self.t[-1]
 
     def at(self, t: float, wrap: bool = False):
