@@ -87,14 +87,15 @@ class Dimension:
 
 
 # The default ranges (ours): around the paper's robot (19 links, A 18.5 mm, L 102 mm, r 9.8 mm,
-# rigid links), wide enough that both ends hold designs the model refuses. The amplitude stops
-# below the base link (20 mm: robot.amplitude must be shorter); the flexures span saw-ros
-# compliant's sweep.
+# rigid links), wide enough that the model refuses designs at their ends: short waves with long
+# tips collide, many long links do not fit the body, a short robot does not reach both walls.
+# The amplitude stops below the base link (20 mm: robot.amplitude must be shorter); the
+# flexures span saw-ros compliant's sweep.
 DIMENSIONS: Tuple[Dimension, ...] = (
-    Dimension('robot.wave_links', 12, 24, integer=True),
-    Dimension('robot.amplitude', 0.014, 0.0195),
-    Dimension('robot.wavelength', 0.085, 0.125),
-    Dimension('robot.tip_distance', 0.008, 0.012),
+    Dimension('robot.wave_links', 10, 26, integer=True),
+    Dimension('robot.amplitude', 0.010, 0.0195),
+    Dimension('robot.wavelength', 0.070, 0.130),
+    Dimension('robot.tip_distance', 0.007, 0.014),
     Dimension('flexure.stiffness', 300.0, 1e5, log=True),
 )
 GEOMETRY = tuple(d.name for d in DIMENSIONS if d.name.startswith('robot.'))
@@ -441,9 +442,12 @@ def write_figure(study: Study, wall: str, path: Path) -> Path:
         ax.set_ylabel(f'{label}{" (" + unit.strip() + ")" if unit else ""}')
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-    refused = len(study.on(wall)) - len(runs)
+    unmodelled = sum(r.status == 'not modelled' for r in study.on(wall))
+    refused = len(study.on(wall)) - len(runs) - unmodelled
     fig.suptitle(f'Design study on the {wall} walls ({study.voltage:g} V, level): {len(runs)} '
-                 f'designs ran, {refused} could not (summary.md says why)')
+                 f'designs ran, {refused} could not (summary.md says why)'
+                 + (f', {unmodelled} flexures not modelled on bending walls' if unmodelled
+                    else ''))
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -492,6 +496,68 @@ def standing_text(study: Study, wall: str, measure: str, label: str, unit: str) 
     return text.rstrip()
 
 
+def front_table(study: Study, wall: str, measure: str, label: str) -> str:
+    """Return the designs of one front as a markdown table, slowest first."""
+    front = standing(study, wall, measure)['front']
+    rows = [f'The front of speed against {label} ({len(front)} designs):', '',
+            '| design | links | A (mm) | L (mm) | r (mm) | flexure (N/m) | speed (cm/s) | AR | '
+            'cost of transport | vibration (m/s^2 RMS) |', '|---' * 10 + '|']
+    for r in front:
+        g = r.geometry
+        rows.append(f'| {r.design}{" (paper)" if r.paper else ""} | '
+                    f'{int(g["robot.wave_links"])} | {1000 * g["robot.amplitude"]:.1f} | '
+                    f'{1000 * g["robot.wavelength"]:.1f} | {1000 * g["robot.tip_distance"]:.1f} '
+                    f'| {"rigid" if r.flexure == 0.0 else f"{r.flexure:.0f}"} | '
+                    f'{100 * r.speed:.2f} | {r.advance_ratio:.3f} | {r.cost_of_transport:.3f} | '
+                    f'{r.vibration:.2f} |')
+    return '\n'.join(rows)
+
+
+FLEXURE_BANDS = ((300.0, 1e3), (1e3, 3e3), (3e3, 1e4), (1e4, 1e5))      # N/m
+
+
+def flexure_table(study: Study, wall: str = 'rigid') -> str:
+    """Return each flexure against rigid links on the same geometry, by stiffness band."""
+    rigid = {r.design: r for r in study.on(wall) if r.ok and r.flexure == 0.0}
+    pairs = [(rigid[r.design], r) for r in study.on(wall)
+             if r.ok and r.flexure > 0.0 and r.design in rigid]
+    rows = [f'Flexures against rigid links on the same geometry, {wall} walls (medians over '
+            f'the pairs of each band):', '',
+            '| flexure (N/m) | pairs | with less vibration | vibration | speed | cost of '
+            'transport |', '|---' * 6 + '|']
+    for low, high in FLEXURE_BANDS:
+        band = [(a, b) for a, b in pairs if low <= b.flexure < high]
+        if not band:
+            continue
+
+        def median(get: Callable[[DesignRun], float]) -> str:
+            return _change(float(np.median([get(b) / get(a) for a, b in band])), 1.0)
+        rows.append(f'| {low:g} - {high:g} | {len(band)} | '
+                    f'{sum(b.vibration < a.vibration for a, b in band)} | '
+                    f'{median(lambda r: r.vibration)} | {median(lambda r: r.speed)} | '
+                    f'{median(lambda r: r.cost_of_transport)} |')
+    return '\n'.join(rows) if pairs else ''
+
+
+def rank_correlations(study: Study, wall: str) -> str:
+    """Return how each geometric parameter ranks with the cost of transport (rigid links)."""
+    runs = [r for r in study.on(wall) if r.ok and r.flexure == 0.0]
+    if len(runs) < 3:
+        return ''
+
+    def ranks(values: Sequence[float]) -> np.ndarray:
+        return np.argsort(np.argsort(np.asarray(values, float))).astype(float)
+    cost = ranks([r.cost_of_transport for r in runs])
+    parts = []
+    for name in GEOMETRY:
+        mine = ranks([r.geometry[name] for r in runs])
+        if mine.std() > 0.0:
+            rho = float(np.corrcoef(mine, cost)[0, 1])
+            parts.append(f'{name.split(".")[1]} {rho:+.2f}')
+    return (f'Rank correlation (Spearman) of each parameter with the cost of transport, the '
+            f'{len(runs)} rigid-link designs that ran: ' + ', '.join(parts) + '.')
+
+
 def summary_text(study: Study, figures: Dict[str, str], seconds: Optional[float] = None) -> str:
     """Return summary.md: the study, the statuses, and where the paper's robot sits."""
     statuses = sorted({r.status for r in study.runs})
@@ -519,16 +585,23 @@ def summary_text(study: Study, figures: Dict[str, str], seconds: Optional[float]
         lines = [f'### {wall.capitalize()} walls', '', f'![{wall}]({figures[wall]})', '']
         lines += [standing_text(study, wall, measure, label, unit)
                   for measure, label, unit in MEASURES]
+        for measure, label, _ in MEASURES:
+            lines += ['', front_table(study, wall, measure, label)]
+        lines += ['', rank_correlations(study, wall)]
+        if any(r.ok and r.flexure > 0.0 for r in study.on(wall)):
+            lines += ['', flexure_table(study, wall)]
         sections.append('\n'.join(lines))
     took = '' if seconds is None else f' It took {seconds:.0f} s.'
     return f"""# Design study (generated by `saw-ros design`)
 
-The designs: {size}, plus the paper's robot (design 0); on the {', '.join(study.walls)} walls
-at {study.voltage:g} V, level. Each run settles {study.settle:g} s and is measured over
-{study.measure:g} s; {len(study.runs)} runs in all.{took} Flexure damping ratio
-{DAMPING_RATIO:g}. Speed: the mean forward speed; cost of transport: the mean electrical power
-V i over (m g speed); vibration: the RMS normal acceleration of the body (shape-drive's
-measure, as `saw-ros compliant` takes it).
+The designs: {size}; and the paper's robot (design 0).
+
+On the {', '.join(study.walls)} walls at {study.voltage:g} V, level. Each run settles
+{study.settle:g} s and is measured over {study.measure:g} s; {len(study.runs)} runs in
+all.{took} Flexure damping ratio {DAMPING_RATIO:g}. Speed: the mean forward speed; cost of
+transport: the mean electrical power V i over (m g speed); vibration: the RMS normal
+acceleration of the body (shape-drive's measure, as `saw-ros compliant` takes it).
+docs/design_study.md explains the study.
 
 | parameter | low | high | sampled |
 |---|---|---|---|
