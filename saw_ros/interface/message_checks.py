@@ -162,6 +162,35 @@ def camera_matrix(k: Sequence[float], width: int, height: int, max_pixels: int) 
                                          'pixels')
 
 
+class FrameGaps:
+    """
+    Counts the frames missing from a stream of images by their stamps (ns), in order.
+
+    A camera publishes at a fixed rate; its period is taken as the shortest interval seen so
+    far, and an interval of k periods (k >= 1.5, rounded) means k - 1 frames that never came:
+    dropped on the way (a reader slower than the stream loses the oldest of its queue without
+    a word from DDS) or by the source. A stream whose rate varies is over-counted; the count is
+    a report, never a reason to refuse a frame. A stamp not after the last restarts the count's
+    reference (a replay).
+    """
+
+    def __init__(self) -> None:
+        self.period: Optional[int] = None
+        self.last: Optional[int] = None
+        self.missed = 0
+
+    def add(self, t: int) -> int:
+        """Take the stamp of a frame that arrived; return the frames missed just before it."""
+        last, self.last = self.last, t
+        if last is None or t <= last:
+            return 0
+        dt = t - last
+        self.period = dt if self.period is None else min(self.period, dt)
+        gap = int(round(dt / self.period)) - 1 if dt >= 1.5 * self.period else 0
+        self.missed += gap
+        return gap
+
+
 class StampOrder:
     """
     Refuses stamps that go back (or leap ahead), unless ``restart_after`` in a row go on from them.

@@ -141,3 +141,15 @@ def test_a_leap_ahead_is_refused_with_max_leap():
     assert kind(order.check, 10 ** 18) == 'stamp leapt ahead'
     order.check(11)
     assert order.last == 11
+
+
+def test_frame_gaps_count_the_frames_missing_by_their_stamps():
+    gaps = checks.FrameGaps()
+    period = 16_666_667                          # 60 fps, in ns
+    stamps = [k * period for k in range(100) if k not in (10, 11, 12, 50)]
+    reported = [gaps.add(t) for t in stamps]
+    assert gaps.missed == 4 and gaps.period == period
+    assert reported[10] == 3 and reported[47] == 1 and sum(reported) == 4
+    # A frame late by less than half a period, and a replay from the start: nothing counted.
+    assert gaps.add(stamps[-1] + period + period // 3) == 0
+    assert gaps.add(0) == 0 and gaps.add(period) == 0 and gaps.missed == 4

@@ -154,6 +154,7 @@ class VisionNode(Node):
         self.info = None
         self._pending = deque(maxlen=PENDING)
         self.results = 0
+        self.gaps = checks.FrameGaps()    # frames missing from the image stream, by stamp
         pub = self.create_publisher
         out_qos = publisher_profile('tracking')
         self._pub_front = pub(PointStamped, topics.TRACKING_FRONT, out_qos)
@@ -261,6 +262,7 @@ class VisionNode(Node):
         t_ns = msg.stamp_ns if isinstance(msg, cdr.ImageView) else conv.stamp_ns(
             msg.header.stamp)
         self._image_order.check(t_ns)
+        self.gaps.add(t_ns)
         try:
             image, encoding = images.decode(msg)
         except ValueError as exc:
@@ -326,6 +328,7 @@ class VisionNode(Node):
             st.level = DiagnosticStatus.WARN
         slope = self.tracker.slope_used
         values = {'status': res.status, 'candidates': res.candidates, 'frames': c.frames,
+                  'frames_missed': self.gaps.missed,
                   'ok_frames': c.ok, 'front_lost_frames': c.front_lost,
                   'back_lost_frames': c.back_lost, 'ambiguous_frames': c.ambiguous,
                   'partial_frames': c.partial,
