@@ -141,6 +141,13 @@ def test_bad_parameters_are_clear_errors(spec, message):
         cal.make_parameters([spec])
 
 
+def test_a_start_below_log_bounds_sits_on_the_lower_bound():
+    # flexure.stiffness defaults to 0 (rigid links): a fit of it starts at its lower bound.
+    (flexure,) = cal.make_parameters(['flexure.stiffness:100:10000'])
+    assert flexure.log and flexure.unit_of(0.0) == 0.0 and flexure.unit_of(1e5) == 1.0
+    assert flexure.unit_of(1000.0) == pytest.approx(0.5)
+
+
 def test_damaged_state_is_a_clear_error(tmp_path):
     (tmp_path / cal.STATE_FILE).write_bytes(b'not a pickle')
     with pytest.raises(cal.CalibrationError, match='damaged'):

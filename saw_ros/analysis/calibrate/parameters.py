@@ -56,6 +56,10 @@ class Parameter:
         return float(self.low + u * (self.high - self.low))
 
     def unit_of(self, value: float) -> float:
+        # A start outside the bounds sits on the nearer one: a default of 0 (rigid flexures,
+        # rigid walls) under log bounds raised a math domain error before the first generation.
+        if self.log and value <= self.low:
+            return 0.0
         if self.log:
             u = math.log(value / self.low) / math.log(self.high / self.low)
         else:
