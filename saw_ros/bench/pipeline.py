@@ -12,15 +12,15 @@ records, the camera's JPEG stream included (``pipeline.RECORDED_TOPICS``:
 A rung is sustained when ALL of these hold (N = duration / dt steps, F = 60 x duration frames):
 
 - every process exited 0 and the simulator never reported falling behind real time;
-- the bag holds, for each 1 kHz topic (/clock and the five /saw streams), exactly N messages
-  stamped 1..N ms, consecutive (no gap, no repeat);
+- the bag holds, for each 1 kHz topic (/clock and the four /saw streams), exactly N messages
+  stamped 1..N ms, consecutive (no gap, no repeat), and the joint states of every 10th step;
 - the bag holds F camera infos (and, when recorded, F compressed images), frame k (k = 1..F)
   stamped k/60 s, in order; F tracking marker arrays, and one /saw/markers array per 1/60 s
   slot of the steps' stamps;
 - /saw/tracking/status holds F messages (one per frame), the last one counts F frames (the
   tracker got every image) and /saw/tracking/pose holds exactly one per 'ok' frame (that
   status's ok_frames), each stamped as a frame;
-- the camera received all N poses and N joint states (its log's final counts);
+- the camera received all N poses and N / 10 joint states (its log's final counts);
 - the comparison's truth_samples == N, tracked_samples == the ok frames, and it reached
   steady state;
 - the simulated time advanced at least 97 % as fast as asked (first to last /clock receive time
@@ -238,8 +238,10 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     from saw_ros.bag import BagReader
     from saw_ros.ros.cdr import array_stamp_ns, header_stamp_ns
     from saw_ros.ros.markers import RATE as MARKER_RATE
-    streams = topics.step_topics()  # /clock + 5 streams
+    from saw_ros.ros.nodes.simulator import JOINT_STATES_RATE
+    streams = topics.step_topics()  # /clock + 4 streams
     n = int(round(duration / dt))
+    joints_every = max(1, int(round(1.0 / (JOINT_STATES_RATE * dt))))
     frames = int(round(duration * FPS))
     step_ns = int(round(dt * 1e9))
     frame_stamps = [int(round(k * 1e9 / FPS)) for k in range(1, frames + 1)]
@@ -255,7 +257,8 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     vision_frames = 0
     reader = BagReader(str(run.bag_dir))
     wanted = streams + IMAGE_TOPICS + (topics.CAMERA_INFO, topics.MARKERS, topics.TRACKING_MARKERS,
-                                       topics.TRACKING_STATUS, topics.TRACKING_POSE)
+                                       topics.TRACKING_STATUS, topics.TRACKING_POSE,
+                                       topics.JOINT_STATES)
     arrays = (topics.MARKERS, topics.TRACKING_MARKERS)
     for m in reader.messages(wanted):
         stamps.setdefault(m.topic, []).append(
@@ -268,6 +271,8 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     for topic in streams:
         lost[topic] = _missing(stamps.get(topic, []),
                                [k * step_ns for k in range(1, n + 1)])
+    joint_stamps = [k * step_ns for k in range(joints_every, n + 1, joints_every)]
+    lost[topics.JOINT_STATES] = _missing(stamps.get(topics.JOINT_STATES, []), joint_stamps)
     recorded = set(reader.topics())
     if not recorded & set(IMAGE_TOPICS):
         problems_note = "images not recorded (the camera info and the tracker's status count " \
@@ -293,7 +298,8 @@ def check(run, duration: float, rtf: float, dt: float = 1e-3) -> dict:
     if counts:
         got = dict(part.split('=') for part in
                    counts[-1].split('inputs received:')[1].split(';')[0].split())
-        lost['camera inputs'] = 2 * n - int(got.get('poses', 0)) - int(got.get('joint_states', 0))
+        lost['camera inputs'] = n + len(joint_stamps) - int(got.get('poses', 0)) - int(
+            got.get('joint_states', 0))
     else:
         problems.append('camera did not report its input counts')
     sim_log = run.logs['simulator'].read_text(errors='replace')

@@ -77,7 +77,7 @@ TOPICS: Tuple[Topic, ...] = (
           'contact points with their forces, link, surface and slipping'),
     Topic(CONTACT_WRENCH, 'geometry_msgs/msg/WrenchStamped', 'stream', 'simulator', '1000 Hz',
           'base_link', 'net contact force and moment about the COM'),
-    Topic(JOINT_STATES, 'sensor_msgs/msg/JointState', 'stream', 'simulator', '1000 Hz',
+    Topic(JOINT_STATES, 'sensor_msgs/msg/JointState', 'stream', 'simulator', '100 Hz',
           'base_link', 'helix phase, speed and motor torque (effort), and every URDF joint: '
           "each wave link's angle, its centre along x and along y",
           subscribers='camera, comparison, speed_controller',
@@ -195,8 +195,9 @@ def subscribers(t: Topic) -> Tuple[str, ...]:
 
 
 def step_topics() -> Tuple[str, ...]:
-    """Return what the simulator publishes once per step, in order: its clock and stream rows."""
-    return tuple(t.name for t in published_by('simulator') if t.qos in ('clock', 'stream'))
+    """Return what the simulator publishes once per step, in order: its 1 kHz clock and streams."""
+    return tuple(t.name for t in published_by('simulator')
+                 if t.qos in ('clock', 'stream') and t.rate == '1000 Hz')
 
 
 def recorded_topics() -> List[str]:

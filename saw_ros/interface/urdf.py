@@ -23,8 +23,8 @@ turning. Frames as saw_ros.interface.frames and the core's body frame (saw_ros.c
   ``link_NN_x`` and ``link_NN_y``; ``link_NN`` carries the drawing.
 
 ``link_frames`` gives every frame of the tree at a phase from the core's ``link_geometry`` (the
-simulator's own TF, without robot_state_publisher); ``JointStateTable`` the joint values at
-1 kHz from a table of the same (docs/viewers.md).
+simulator's own TF, without robot_state_publisher); ``JointStateTable`` the joint values of
+/saw/joint_states (100 Hz) from a table of the same (docs/viewers.md).
 """
 from __future__ import annotations
 

@@ -168,15 +168,17 @@ def test_the_graph_split_over_two_hosts_loses_nothing(hosts, tmp_path):
     # on one host, frames can be lost when a shared machine starves the tracker: the check
     # counts them (the tracker's own status against the camera's frames), the pace is the
     # bench's figure (saw-ros bench), neither is what this test is about.
-    crossing = set(topics.step_topics()) | {'camera inputs', 'comparison truth'}
+    crossing = set(topics.step_topics()) | {topics.JOINT_STATES, 'camera inputs',
+                                            'comparison truth'}
     lost = {t: n for t, n in result['lost_by_topic'].items() if t in crossing and n}
     problems = [p for p in result['problems'] if not p.startswith((
         'simulated time ran at', 'simulator fell behind', 'last tracking status'))]
     assert not lost and not problems, (result['lost_by_topic'], problems)
     print(f"two hosts at {factor}: lost {result['lost']}, simulated time at "
           f"{result['achieved_rtf']} x real time, {sent_bytes(hosts[0]) / 1e6:.1f} MB sent")
-    # Over the network: 4 s of the simulator's 1 kHz streams are several MB.
-    assert sent_bytes(hosts[0]) > 5e6, sent_bytes(hosts[0])
+    # Over the network: 4 s of the simulator's streams are several MB (0.9 MB/s in the bag, the
+    # pose three times over: recorder, camera, comparison).
+    assert sent_bytes(hosts[0]) > 3e6, sent_bytes(hosts[0])
     final = [line for line in run.logs['recorder'].read_text().splitlines()
              if 'finished:' in line][0]
     assert final.endswith('; lost 0'), final

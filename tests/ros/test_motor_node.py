@@ -17,7 +17,7 @@ from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 pytestmark = pytest.mark.ros
 
 from saw_ros.interface import topics as table  # noqa: E402, I100
-from saw_ros.ros.nodes.simulator import MOTOR_RATE, TOPICS  # noqa: E402
+from saw_ros.ros.nodes.simulator import JOINT_STATES_RATE, MOTOR_RATE, TOPICS  # noqa: E402
 from saw_ros.ros.qos import message_class  # noqa: E402
 
 MS = 1_000_000
@@ -46,7 +46,7 @@ def test_the_motor_slows_the_helix_climbing_and_reports_its_current(ros_context,
     """
     4 V at +20 deg: the helix turns below its no-load speed, exactly as the core's motor.
 
-    /saw/joint_states carries the core's helix speed and motor torque (effort) at every step;
+    /saw/joint_states carries the core's helix speed and motor torque (effort), at 100 Hz;
     /saw/motor, at 100 Hz of simulated time, the supply voltage and minus the current
     (V - k w) / R at the same stamps.
     """
@@ -56,6 +56,7 @@ def test_the_motor_slows_the_helix_climbing_and_reports_its_current(ros_context,
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     raw = {name: [] for name in list(TOPICS) + [table.MOTOR]}
+    joints_every = round(1000 / JOINT_STATES_RATE)     # steps between two joint states
     qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
     # Every per-step topic, so that the node (wait_for_subscribers 1) starts.
     for name in raw:
@@ -67,7 +68,7 @@ def test_the_motor_slows_the_helix_climbing_and_reports_its_current(ros_context,
                         60, spin=spin), simulator.output()
         assert simulator.wait(timeout=15) == 0, simulator.output()
         # What is still in flight after the node exits.
-        wait_for(lambda: len(raw[table.JOINT_STATES]) >= STEPS, 3, spin=spin)
+        wait_for(lambda: len(raw[table.JOINT_STATES]) >= STEPS // joints_every, 3, spin=spin)
     finally:
         executor.shutdown(timeout_sec=1)
         node.destroy_node()
@@ -81,7 +82,8 @@ def test_the_motor_slows_the_helix_climbing_and_reports_its_current(ros_context,
     # Steps are compared by stamp: a subscriber on this shared 2-core machine may lose some
     # (test_simulator_node checks that every step goes out once; this test is about the motor).
     steps = np.array([stamp_of(r) for r in raw[table.JOINT_STATES]]) // MS
-    assert len(steps) > 0.8 * STEPS and (np.diff(steps) > 0).all()
+    assert len(steps) > 0.8 * STEPS / joints_every and (np.diff(steps) > 0).all()
+    assert (steps % joints_every == 0).all()
     omega = np.array([j.velocity[0] for j in joints])
     effort = np.array([j.effort[0] for j in joints])
     assert len(joints[0].effort) == len(joints[0].name)
@@ -102,7 +104,7 @@ def test_the_motor_slows_the_helix_climbing_and_reports_its_current(ros_context,
     # Slower than at no load once spun up: the climb loads the motor.
     no_load = 2 * math.pi * scenario.frequency
     spun_up = omega[steps > 1000]
-    assert len(spun_up) > 500
+    assert len(spun_up) > 500 // joints_every
     assert 0.7 * no_load < np.mean(spun_up) < 0.97 * no_load
 
     # /saw/motor: 100 Hz of simulated time, the supply voltage, minus the resistor's current.

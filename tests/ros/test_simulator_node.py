@@ -26,9 +26,11 @@ from std_srvs.srv import Trigger
 pytestmark = pytest.mark.ros
 
 from saw_ros.interface import topics as table  # noqa: E402, I100
-from saw_ros.ros.nodes.simulator import TOPICS  # noqa: E402  (topic -> message class)
+from saw_ros.ros.nodes.simulator import JOINT_STATES_RATE, TOPICS  # noqa: E402
 
 MS = 1_000_000
+# Steps between two messages of each topic: 1, and 10 for /saw/joint_states (100 Hz).
+EVERY = {t: round(1000 / JOINT_STATES_RATE) if t == table.JOINT_STATES else 1 for t in TOPICS}
 # Real time: 6000 messages/s, which one raw subscriber keeps up with on a shared 2-core machine.
 # (real_time_factor 0 outruns any Python subscriber of all six topics: see the node's docstring.)
 RTF = 1.0
@@ -142,19 +144,22 @@ def test_streams_every_step_and_advance_like_the_core(start_simulator, watcher):
     """
     3 s of simulated time.
 
-    Every topic carries 3000 stamps 1 ms apart, /clock gives the same times, the node exits 0 by
-    itself, and the pose is the core's own trajectory (AR included).
+    Every topic carries 3000 stamps 1 ms apart (the joint states every 10th), /clock gives the
+    same times, the node exits 0 by itself, and the pose is the core's own trajectory (AR
+    included).
     """
     steps = 3000
     proc = start_simulator(real_time_factor=RTF, duration=steps / 1000.0)
-    done = watcher.wait(lambda: min(map(watcher.count, TOPICS)) >= steps, timeout=30)
+    done = watcher.wait(lambda: all(watcher.count(t) >= steps // EVERY[t] for t in TOPICS),
+                        timeout=30)
     assert done, {t: watcher.count(t) for t in TOPICS}
     assert proc.wait(timeout=15) == 0, proc.output()
     assert 'Traceback' not in proc.output()
     clock = watcher.stamps(table.CLOCK)
     assert_every_step_once(clock, 1, steps)
     for topic in TOPICS:
-        np.testing.assert_array_equal(watcher.stamps(topic), clock, err_msg=topic)
+        np.testing.assert_array_equal(watcher.stamps(topic), clock[EVERY[topic] - 1::EVERY[topic]],
+                                      err_msg=topic)
 
     # The core, same parameters, same steps.
     scenario = Scenario()
@@ -175,7 +180,7 @@ def test_streams_every_step_and_advance_like_the_core(start_simulator, watcher):
     assert all(p.header.frame_id == 'surface' for p in poses[:10])
     assert all(math.isfinite(p.pose.position.x) for p in poses)
 
-    joints = watcher.messages(table.JOINT_STATES, steps - 1)[0]
+    joints = watcher.messages(table.JOINT_STATES, steps // EVERY[table.JOINT_STATES] - 1)[0]
     assert list(joints.name) == urdf.joint_names(scenario.robot)
     assert joints.position[0] == pytest.approx(x[steps][2])
     assert joints.velocity[0] == pytest.approx(2 * math.pi * scenario.frequency)
@@ -199,7 +204,8 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     slope = 0.3
     proc = start_simulator(real_time_factor=RTF, **{'conditions.frequency': 0.0,
                                                     'conditions.slope': slope})
-    assert watcher.wait(lambda: min(map(watcher.count, TOPICS)) >= 2000, 30), proc.output()
+    assert watcher.wait(lambda: min(watcher.count(t) * EVERY[t] for t in TOPICS) >= 2000, 30), \
+        proc.output()
 
     # Refused: out of range, and frozen at run time. The node runs on.
     bad = watcher.set_parameter('surface.friction_coefficient', -1.0)
@@ -233,8 +239,8 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     clock = watcher.stamps(table.CLOCK)
     assert_every_step_once(clock, 1, len(clock))
     for topic in TOPICS:
-        np.testing.assert_array_equal(watcher.stamps(topic), clock[:watcher.count(topic)],
-                                      err_msg=topic)
+        np.testing.assert_array_equal(watcher.stamps(topic), clock[EVERY[topic] - 1::EVERY[
+            topic]][:watcher.count(topic)], err_msg=topic)
 
     # Mean over 1-2 s of simulated time (the robot rings between the compliant surfaces).
     mass = Scenario().robot.mass

@@ -2,12 +2,12 @@
 The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time.
 
 Steps ``core.Simulator`` and publishes every step exactly once (stamps = simulated time, 1 ms
-apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts, /saw/contact_wrench and
+apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts and /saw/contact_wrench;
 /saw/joint_states (every joint of the URDF: the helix, the base link, each wave link's position
-in the plane and angle); and the robot for RViz / Foxglove on /saw/markers, with TF of every link
-of the URDF (``link_tf``, so RobotModel draws the wave without robot_state_publisher), at
-``markers_rate`` (60 Hz) of simulated time. docs/simulator.md lists the topics, frames, QoS and
-parameters.
+in the plane and angle) every JOINT_STATES_RATE of simulated time; and the robot for RViz /
+Foxglove on /saw/markers, with TF of every link of the URDF (``link_tf``, so RobotModel draws the
+wave without robot_state_publisher), at ``markers_rate`` (60 Hz) of simulated time.
+docs/simulator.md lists the topics, frames, QoS and parameters.
 
 Motor. The helix turns at conditions.frequency, or, with motor.voltage > 0, at the speed the
 core's DC motor reaches under the contacts' load (docs/motor.md). /saw/joint_states carries the
@@ -65,15 +65,23 @@ from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_node
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-# What the node publishes every step, in this order (tests and benchmarks subscribe from here):
-# the simulator's rows of the topic table (saw_ros.interface.topics) with a per-step profile.
-TOPICS = {name: message_class(topics.topic(name).type) for name in topics.step_topics()}
+# What the node publishes by steps, in this order (tests and benchmarks subscribe from here): the
+# simulator's rows of the topic table (saw_ros.interface.topics) with a stream profile, every step
+# (topics.step_topics()) but /saw/joint_states, every JOINT_STATES_RATE of simulated time.
+TOPICS = {t.name: message_class(t.type) for t in topics.published_by('simulator')
+          if t.qos in ('clock', 'stream')}
 TICK_PERIOD = 0.01           # s of wall time between wake-ups (each costs ~0.1 ms of executor)
 BATCH_BUDGET = 0.02          # s of wall time a wake-up may spend stepping
 MAX_BATCH = 50               # steps per wake-up: bursts well below the queue depths (100, 200)
 # /saw/motor per second of simulated time. Not every step: each 1 kHz topic costs the graph's
 # real-time factor, and 100 Hz still resolves the current's ripple at the wave's link rate.
 MOTOR_RATE = 100.0
+# /saw/joint_states per second of simulated time. Not every step: the 59 joints cost 5 us a step
+# to fill and encode and a 1.9 KB delivery to each reader (camera, recorder), while the camera
+# draws the helix phase interpolated between samples (exact at a constant frequency, within
+# 2e-4 rad with a motor, 12 V; 2 um of link height) and robot_state_publisher and viewers take
+# joint states at tens of Hz (docs/ros.md, docs/measurements.md).
+JOINT_STATES_RATE = 100.0
 WALL_SAMPLES = 201           # points of each bending wall on /saw/walls (5 mm apart over 1 m)
 
 MAX_LAG = 0.25               # s of wall time behind schedule before declaring "behind"
@@ -131,6 +139,7 @@ class SimulatorNode(Node):
         (self._publish_clock, self._publish_pose, self._publish_twist, self._publish_contacts,
          self._publish_wrench, self._publish_joints) = (
             p.handle.publish_raw for p in self._publishers_all)
+        self._joints_every = max(1, int(round(1.0 / (JOINT_STATES_RATE * self.dt))))
         self._contacts_cdr = conv.ContactsCdr()
         self._joints_cdr = conv.JointStateCdr(self._joint_names)
         # The robot for a viewer, from this node's own state: at markers_rate of simulated time.
@@ -325,7 +334,7 @@ class SimulatorNode(Node):
             self._behind_since_warning = 0
 
     def step_and_publish(self) -> None:
-        """One physics step, then its six messages, all stamped (steps + 1) * dt."""
+        """One physics step, then its messages, all stamped (steps + 1) * dt."""
         sim = self.sim
         self.commands.poll()
         try:
@@ -349,19 +358,20 @@ class SimulatorNode(Node):
                                      contacts.slipping[0])
         fx, fy, mz = sim.contact_wrench[:, 0].tolist()      # the core's, surface axes
         fx, fy = conv.body_axes(fx, fy, theta)
-        # The helix's speed and torque are the core's: constant, or the motor's under load.
-        omega = float(sim.omega[0])
         driven = bool(sim.driven[0])
-        values, rates = self._joints.values_and_rates(float(sim.phase[0]), omega)
         # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
         self._publish_clock(conv.clock_cdr(ns))
         self._publish_pose(conv.pose_cdr(x, y, theta, ns))
         self._publish_twist(conv.twist_cdr(vx, vy, w, ns))
         self._publish_contacts(self._contacts_cdr(points, ns))
         self._publish_wrench(conv.wrench_cdr(fx, fy, mz, ns))
-        self._publish_joints(self._joints_cdr(
-            float(sim.phase[0]), omega, values, rates, ns,
-            float(sim.motor_torque[0]) if driven else None))
+        if self.steps % self._joints_every == 0:
+            # The helix's speed and torque are the core's: constant, or the motor's under load.
+            omega = float(sim.omega[0])
+            values, rates = self._joints.values_and_rates(float(sim.phase[0]), omega)
+            self._publish_joints(self._joints_cdr(
+                float(sim.phase[0]), omega, values, rates, ns,
+                float(sim.motor_torque[0]) if driven else None))
         if self.steps % self._motor_every == 0:
             volts = float(sim.motor.voltage[0]) if driven else 0.0   # the commanded one too
             self._pub_motor.publish(conv.motor_msg(volts, float(sim.current[0]), ns,

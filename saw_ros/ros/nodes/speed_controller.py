@@ -9,7 +9,7 @@ chosen by ``feedback``:
 - ``tracking``: the vision node's smoothed speed, /saw/tracking/twist_smoothed (60 Hz): a visual
   servo, what a lab would close around the real robot and a camera;
 - ``ground_truth``: the simulator's /saw/twist (1 kHz), used at ``rate``;
-- ``helix``: the helix speed of /saw/joint_states (1 kHz, used at ``rate``), turned into a robot
+- ``helix``: the helix speed of /saw/joint_states (100 Hz, used at ``rate``), turned into a robot
   speed by v = advance_ratio * v_theory(f) (docs/drive.md): an inner loop on the motor, blind to
   slip.
 
