@@ -66,7 +66,8 @@ def subscriber(steps: int, timeout: float) -> int:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
 
-    from saw_ros.ros.nodes.simulator import TOPICS
+    from saw_ros.interface import topics
+    from saw_ros.ros.nodes.simulator import JOINT_STATES_RATE, TOPICS
     from saw_ros.graph.process import wait_for
 
     stop = []
@@ -84,10 +85,14 @@ def subscriber(steps: int, timeout: float) -> int:
     step_ns = 1_000_000
     state = {t: {'count': 0, 'last': 0, 'bad': 0, 'first': 0, 'gaps': 0, 'end': False}
              for t in TOPICS}
+    # Steps between two messages: 1, and 10 for /saw/joint_states (JOINT_STATES_RATE).
+    every = {t: round(1000 / JOINT_STATES_RATE) if t == topics.JOINT_STATES else 1
+             for t in TOPICS}
     wall = {'first': None, 'last': None, 'clock': None}
 
     def make_callback(topic):
         s = state[topic]
+        spacing = every[topic] * step_ns
 
         def callback(raw):
             sec, nanosec = unpack(raw, 4)
@@ -96,12 +101,12 @@ def subscriber(steps: int, timeout: float) -> int:
                 s['count'] += 1
                 if s['first'] == 0:
                     s['first'] = stamp // step_ns
-                elif stamp - s['last'] != step_ns:
+                elif stamp - s['last'] != spacing:
                     s['gaps'] += 1
             else:
                 s['bad'] += 1          # a repeat or a step out of order
             s['last'] = stamp
-            if stamp >= end:
+            if stamp >= end - end % spacing:
                 s['end'] = True
             now = time.monotonic()
             if wall['first'] is None:
@@ -132,7 +137,7 @@ def subscriber(steps: int, timeout: float) -> int:
         if wall['last'] is not None and time.monotonic() - wall['last'] > 3.0:
             break                      # the publisher is gone
     span = (wall['last'] - wall['first']) if wall['first'] is not None else 0.0
-    lost = sum(steps - s['count'] for s in state.values())
+    lost = sum(steps // every[t] - s['count'] for t, s in state.items())
     print(json.dumps({'lost': lost, 'bad': sum(s['bad'] for s in state.values()),
                       'received': sum(s['count'] for s in state.values()),
                       'achieved_rtf': (steps - 1) * 1e-3 / span if span > 0 else 0.0,
