@@ -64,7 +64,7 @@ def command_latency(samples: int) -> list:
     duration = 2.0 + 0.15 * samples
     sim = ManagedProcess('simulator', node_command('simulator', params={
         'motor.voltage': VOLTS[0], 'real_time_factor': 1.0, 'duration': duration,
-        'command_timeout': 0.0}), env, log_dir('drive'))
+        'command_timeout': 0.0, 'joint_states_rate': 1000.0}), env, log_dir('drive'))
     context = Context()
     rclpy.init(context=context)
     node = Node('latency_probe', context=context)

@@ -4,7 +4,7 @@ The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time
 Steps ``core.Simulator`` and publishes every step exactly once (stamps = simulated time, 1 ms
 apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts and /saw/contact_wrench;
 /saw/joint_states (every joint of the URDF: the helix, the base link, each wave link's position
-in the plane and angle) every JOINT_STATES_RATE of simulated time; and the robot for RViz /
+in the plane and angle) at ``joint_states_rate`` (100 Hz); and the robot for RViz /
 Foxglove on /saw/markers, with TF of every link of the URDF (``link_tf``, so RobotModel draws the
 wave without robot_state_publisher), at ``markers_rate`` (60 Hz) of simulated time.
 docs/simulator.md lists the topics, frames, QoS and parameters.
@@ -76,11 +76,12 @@ MAX_BATCH = 50               # steps per wake-up: bursts well below the queue de
 # /saw/motor per second of simulated time. Not every step: each 1 kHz topic costs the graph's
 # real-time factor, and 100 Hz still resolves the current's ripple at the wave's link rate.
 MOTOR_RATE = 100.0
-# /saw/joint_states per second of simulated time. Not every step: the 59 joints cost 5 us a step
-# to fill and encode and a 1.9 KB delivery to each reader (camera, recorder), while the camera
-# draws the helix phase interpolated between samples (exact at a constant frequency, within
-# 2e-4 rad with a motor, 12 V; 2 um of link height) and robot_state_publisher and viewers take
-# joint states at tens of Hz (docs/ros.md, docs/measurements.md).
+# /saw/joint_states per second of simulated time (``joint_states_rate``'s default). Not every
+# step: the 59 joints cost 5 us a step to fill and encode and a 1.9 KB delivery to each reader
+# (camera, recorder), while the camera draws the helix phase interpolated between samples (exact
+# at a constant frequency, within 2e-4 rad with a motor, 12 V; 2 um of link height) and
+# robot_state_publisher and viewers take joint states at tens of Hz (docs/ros.md,
+# docs/measurements.md).
 JOINT_STATES_RATE = 100.0
 WALL_SAMPLES = 201           # points of each bending wall on /saw/walls (5 mm apart over 1 m)
 
@@ -139,7 +140,8 @@ class SimulatorNode(Node):
         (self._publish_clock, self._publish_pose, self._publish_twist, self._publish_contacts,
          self._publish_wrench, self._publish_joints) = (
             p.handle.publish_raw for p in self._publishers_all)
-        self._joints_every = max(1, int(round(1.0 / (JOINT_STATES_RATE * self.dt))))
+        self._joints_every = max(1, int(round(
+            1.0 / (float(self.get_parameter('joint_states_rate').value) * self.dt))))
         self._contacts_cdr = conv.ContactsCdr()
         self._joints_cdr = conv.JointStateCdr(self._joint_names)
         # The robot for a viewer, from this node's own state: at markers_rate of simulated time.
@@ -436,6 +438,10 @@ OWN_PARAMETERS = (
         'Hz', 'visualization_msgs/MarkerArray of the robot on /saw/markers, and surface -> '
         'base_link on /tf, per simulated second (at most one per step); 0 = none', 0.0, None,
         read_only=True)),
+    ('joint_states_rate', JOINT_STATES_RATE, spec_meta(
+        'Hz', '/saw/joint_states per simulated second (at most one per step: 1/dt or more = every '
+        'step, as the command latency benchmark needs the motor torque)', 0.0, None,
+        low_open=True, read_only=True)),
     ('link_tf', True, spec_meta(
         '', "with surface -> base_link, every link frame of the robot's URDF on /tf (at "
         "markers_rate), so that RViz's RobotModel and Foxglove draw the robot without "
