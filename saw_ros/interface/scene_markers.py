@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from saw_ros.core import body
-from saw_ros.core.kinematics import base_link_end, link_geometry
+from saw_ros.core.kinematics import base_link_end, link_geometry, LinkGeometry
 from saw_ros.core.params import RobotParams
 
 Point = Tuple[float, float, float]
@@ -131,7 +131,7 @@ def _cube(namespace: str, id_: int, colour: Colour, corners: ArrayLike, x: float
 
 
 def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: float,
-          phase: Optional[float]) -> List[Shape]:
+          phase: Optional[float], geometry: Optional[LinkGeometry] = None) -> List[Shape]:
     """
     Return the robot as the camera draws it (saw_ros.core.body), at pose and wave phase.
 
@@ -151,7 +151,7 @@ def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: floa
                             (float(centre.real), float(centre.imag), DEPTH / 2)))
     if phase is None:
         return shapes
-    g = link_geometry(robot_params, float(phase))
+    g = link_geometry(robot_params, float(phase)) if geometry is None else geometry
     hinge, rear = _to_surface([g.hinge, base_link_end(robot_params, g.base_angle)], x, y, theta)
     middle = 0.5 * (hinge + rear)
     shapes.append(Shape('base_link', 0, 'cube', LINK_COLOUR,
@@ -243,7 +243,8 @@ def tracking(front: Optional[Point], back: Optional[Point],
 def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float],
           phase: Optional[float], contacts: Optional[np.ndarray] = None,
           force_scale: float = FORCE_SCALE,
-          walls: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> List[Shape]:
+          walls: Optional[Tuple[np.ndarray, np.ndarray]] = None,
+          geometry: Optional[LinkGeometry] = None) -> List[Shape]:
     """
     Return every shape of the ground truth at one instant (what /saw/markers draws).
 
@@ -252,11 +253,11 @@ def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float
     ``pose``: (x, y, pitch); ``phase``: the helix phase; ``contacts``: a structured array with the
     fields of /saw/contacts (x, y, normal_force, tangential_force, surface, slipping) or None.
     ``walls``: (abscissae, deflections (2, m)) of bending walls (``bent_surfaces``), or None for
-    the flat ones.
+    the flat ones. ``geometry``: the links' ``link_geometry`` at ``phase`` when the caller has it.
     """
     x, y, theta = pose
     flat = surfaces(gap, x) if walls is None else bent_surfaces(gap, *walls)
-    shapes = flat + robot(robot_params, gap, x, y, theta, phase)
+    shapes = flat + robot(robot_params, gap, x, y, theta, phase, geometry)
     if contacts is not None and len(contacts):
         shapes += squeezed(robot_params, gap, contacts)
         shapes += force_arrows(contacts['x'], contacts['y'], contacts['normal_force'],

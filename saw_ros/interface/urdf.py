@@ -36,7 +36,8 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from saw_ros.core.kinematics import cycle_phases, hinge_x, link_geometry, PhaseTable
+from saw_ros.core.kinematics import cycle_phases, hinge_x, link_geometry, LinkGeometry
+from saw_ros.core.kinematics import PhaseTable
 from saw_ros.core.params import RobotParams
 
 NAME = 'saw'
@@ -70,14 +71,16 @@ def rest_abscissae(robot: RobotParams) -> np.ndarray:
 Frame = Tuple[str, str, Tuple[float, float, float], Tuple[float, float, float, float]]
 
 
-def link_frames(robot: RobotParams, phase: float) -> List[Frame]:
+def link_frames(robot: RobotParams, phase: float,
+                geometry: Optional[LinkGeometry] = None) -> List[Frame]:
     """
     Return every joint's frame below ``base_link`` at wave ``phase``, from the core's geometry.
 
     The transforms robot_state_publisher computes from the URDF and exact joint values: helix,
-    base link, and per wave link ``link_NN_x``, ``link_NN_y``, ``link_NN``.
+    base link, and per wave link ``link_NN_x``, ``link_NN_y``, ``link_NN``. ``geometry``: the
+    core's ``link_geometry`` at ``phase``, when the caller has it already.
     """
-    geo = link_geometry(robot, phase)
+    geo = link_geometry(robot, phase) if geometry is None else geometry
     zero = (0.0, 0.0, 0.0)
     half, base = 0.5 * phase, 0.5 * float(geo.base_angle)     # half angles (quaternions)
     frames: List[Frame] = [

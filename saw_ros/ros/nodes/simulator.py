@@ -51,6 +51,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from saw_ros.core import stability
 from saw_ros.core.dynamics import DivergenceError, Simulator
+from saw_ros.core.kinematics import link_geometry
 from saw_ros.core.params import ParameterError, Scenario
 from saw_ros.core.params import spec_meta
 from saw_ros.interface import frames, scene_markers, topics, urdf
@@ -386,15 +387,18 @@ class SimulatorNode(Node):
                 along = x + np.linspace(-0.5, 0.5, WALL_SAMPLES) * scene_markers.SURFACE_LENGTH
                 walls = (along, sim.walls.shape(sim.tip_positions.real, along)[0])
                 self._pub_walls.publish(conv.walls_cloud(*walls, scenario.conditions.gap, ns))
+            # The links' geometry once for both: the drawing and the link frames.
+            phase = float(sim.phase[0])
+            geometry = link_geometry(scenario.robot, phase)
             self._pub_markers.publish(markers.marker_array_cdr(scene_markers.scene(
-                scenario.robot, scenario.conditions.gap, (x, y, theta), float(sim.phase[0]),
-                points, walls=walls), ns))
+                scenario.robot, scenario.conditions.gap, (x, y, theta), phase, points,
+                walls=walls, geometry=geometry), ns))
             # The link frames from the core's exact geometry at this phase (the joint states'
             # table is within 1e-5 rad of it): RViz's RobotModel without robot_state_publisher.
             transforms = [(frames.SURFACE, frames.BASE_LINK, (x, y, 0.0),
                            frames.yaw_quaternion(theta))]
             if self._link_tf:
-                transforms += urdf.link_frames(scenario.robot, float(sim.phase[0]) % (2 * math.pi))
+                transforms += urdf.link_frames(scenario.robot, phase % (2 * math.pi), geometry)
             self._publish_tf(tf.message_cdr(transforms, ns))
 
     def close(self) -> None:
