@@ -130,7 +130,7 @@ def test_designs_the_model_cannot_run_are_reported_without_numbers(tmp_path):
 def test_the_command_writes_every_output(tmp_path, capsys):
     out = tmp_path / 'study'
     code = main(['design', '--size', '2', '--walls', 'rigid,sheet', '--settle-s', '0.5',
-                 '--measure-s', '0.5', '--workers', '1', '--quiet', '--out', str(out)])
+                 '--measure-s', '1', '--workers', '1', '--quiet', '--out', str(out)])
     assert code == 0
     printed = capsys.readouterr().out
     assert "rigid: speed against cost of transport: the paper's robot makes" in printed

@@ -34,6 +34,7 @@ NAME = 'design'
 HELP = "sweep the robot's geometry and flexures against three walls: Pareto fronts (issue 31)"
 DEFAULT_OUT = Path('out') / NAME
 DEFAULT_GRID = 3        # levels: 81 geometries, 3 flexures each
+SHORTEST_WINDOW_S = 1.0
 LONGEST_S = 60.0        # settle or measure: a minute of robot time is past any steady state
 
 
@@ -79,8 +80,10 @@ def _ranges(texts):
         except ValueError:
             raise UserError(f'--range {text!r}: LOW and HIGH must be numbers') from None
         name = name.strip()
+        if not all(math.isfinite(v) for v in ends):
+            raise UserError(f'--range {text!r}: LOW and HIGH must be finite numbers')
         if name in meta:
-            ends = tuple(spec_number(int(v) if v == int(v) and name == 'robot.wave_links'
+            ends = tuple(spec_number(int(v) if name == 'robot.wave_links' and v.is_integer()
                                      else v, f'--range {name}', meta[name], name=name)
                          for v in ends)
         out.append((name, ends[0], ends[1]))
@@ -108,11 +111,15 @@ def run(args) -> int:
         raise UserError(f'--size {size}: a hypercube needs at least 1 geometry')
     if args.method == 'grid' and size < 2:
         raise UserError(f'--size {size}: a grid needs at least 2 levels per parameter')
+    if args.seed < 0:
+        raise UserError(f'--seed {args.seed}: must be 0 or more')
     for flag, value in (('--settle-s', args.settle_s), ('--measure-s', args.measure_s)):
         if not (math.isfinite(value) and 0.0 <= value <= LONGEST_S):
             raise UserError(f'{flag} {value:g}: must be a time in [0, {LONGEST_S:g}] s')
-    if not args.measure_s > 0.0:
-        raise UserError('--measure-s 0: the window must be longer than 0 s')
+    if args.measure_s < SHORTEST_WINDOW_S:
+        raise UserError(f'--measure-s {args.measure_s:g}: the window must hold at least '
+                        f'{SHORTEST_WINDOW_S:g} s (a helix turn lasts 0.6-1.1 s at 4-7 V; a '
+                        f'speed over part of one is not the robot\'s)')
     walls = _walls(args.walls)
     try:
         dimensions = design.check_dimensions(_ranges(args.range))
