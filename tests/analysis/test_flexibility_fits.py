@@ -1,4 +1,4 @@
-"""docs/calibration.md's flexibility section quotes the committed fits (issue 31), number by number."""
+"""docs/calibration.md's flexibility section quotes the committed fits (issue 31)."""
 import json
 from pathlib import Path
 

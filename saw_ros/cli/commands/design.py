@@ -119,7 +119,7 @@ def run(args) -> int:
     if args.measure_s < SHORTEST_WINDOW_S:
         raise UserError(f'--measure-s {args.measure_s:g}: the window must hold at least '
                         f'{SHORTEST_WINDOW_S:g} s (a helix turn lasts 0.6-1.1 s at 4-7 V; a '
-                        f'speed over part of one is not the robot\'s)')
+                        f"speed over part of one is not the robot's)")
     walls = _walls(args.walls)
     try:
         dimensions = design.check_dimensions(_ranges(args.range))
