@@ -85,9 +85,10 @@ PARAMETERS = (
     # Split files as ros2 bag record --max-bag-size / --max-bag-duration (rosbag2's default is
     # one file). Ours split by default: mcap's Writer keeps an index entry (~2.3 KB) per chunk
     # until its file is finished, so one file grew the recorder 0.9 MB a minute in the main
-    # graph's soak (14.6 % in 30 min at real-time factor 0.5: ~1.7 MB/s to disk, 390 chunks a
+    # graph's soak (14.6 % in 30 min at real-time factor 0.5: 2.15 MB/s to disk, 383 chunks a
     # minute). A limit makes that grow with one file, not with the run: 512 MiB or 5 min,
-    # whichever comes first, is at most ~4.5 MB of index there (2.5 % of the recorder's RSS).
+    # whichever comes first, was a file every 4.2 min there, ~3.7 MB of index; the soak's
+    # recorder grew 3.8 % (docs/measurements.md).
     ('max_bag_size', 512 << 20, spec_meta('bytes', 'start a new file of the bag once the open '
                                                    'one holds this many bytes (0: no limit)',
                                           0, None)),
