@@ -144,7 +144,8 @@ def test_recorder_parameters_are_read_only(tmp_path, ros_context):
         assert wait_for(lambda: 'recording to' in proc.output(), 30), proc.output()
         for name, value in (('queue_depth', 5), ('topics', ['/other']), ('output', '/tmp/x'),
                             ('compression', 'none'), ('exclude_topics', ['']),
-                            ('discovery_period', 1.0)):
+                            ('discovery_period', 1.0), ('max_bag_size', 1000),
+                            ('max_bag_duration', 1.0)):
             assert_read_only(client, proc, name, value)
     finally:
         client.close()
