@@ -136,6 +136,7 @@ def _parameters():
     return entries + list(OWN_PARAMETERS)
 
 
+@pytest.mark.slow
 def test_every_parameter_at_both_ends_of_its_range_and_one_past(simulator, client):
     """
     Each end of every declared range, then one past it, at run time.

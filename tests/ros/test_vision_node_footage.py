@@ -20,7 +20,7 @@ from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.vision.footage import Shot
 from saw_ros.vision.video import VideoWriter
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 # Full-size frames: the camera motion is measured on the background's texture, which needs the
 # width (saw_ros.vision.egomotion warns below 960 px). No JPEG pass in the generator: the clips

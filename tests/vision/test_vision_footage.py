@@ -15,6 +15,8 @@ from saw_ros.vision.footage import Shot, track_shot, track_shot_ways
 from saw_ros.vision.offline import measure_scale
 from saw_ros.vision.tracker import TrackerConfig
 
+pytestmark = pytest.mark.slow     # clips of 2-7.5 s rendered and tracked
+
 CONFIG = TrackerConfig(steady_window=2.0)
 # The speed's least-squares slope over 2 s of a 1.5 Hz ripple is 0.84 % off the mean speed: the
 # tolerance holds that (the bench's 4 s window, 0.2 %).
