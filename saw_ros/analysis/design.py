@@ -419,6 +419,7 @@ def _plt():
 def write_figure(study: Study, wall: str, path: Path) -> Path:
     """Write ``wall``'s two fronts (speed against cost of transport, and vibration) as a PNG."""
     plt = _plt()
+    from matplotlib.ticker import FormatStrFormatter
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
     runs = [r for r in study.on(wall) if r.ok]
     for ax, (measure, label, unit) in zip(axes, MEASURES):
@@ -439,12 +440,16 @@ def write_figure(study: Study, wall: str, path: Path) -> Path:
             ax.plot(100 * paper.speed, getattr(paper, measure), '*', color='k', ms=16,
                     label="the paper's robot")
         ax.set_xlabel('speed (cm/s)')
-        ax.set_ylabel(f'{label}{" (" + unit.strip() + ")" if unit else ""}')
+        # Log: a few slow designs cost ten times the rest and would squash the front.
+        ax.set_yscale('log')
+        ax.yaxis.set_major_formatter(FormatStrFormatter('%g'))
+        ax.yaxis.set_minor_formatter(FormatStrFormatter('%g'))
+        ax.set_ylabel(f'{label}{" (" + unit.strip() + ")" if unit else ""}, log scale')
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     unmodelled = sum(r.status == 'not modelled' for r in study.on(wall))
     refused = len(study.on(wall)) - len(runs) - unmodelled
-    fig.suptitle(f'Design study on the {wall} walls ({study.voltage:g} V, level): {len(runs)} '
+    fig.suptitle(f'Design study on the {wall} walls ({study.voltage:g} V, level)\n{len(runs)} '
                  f'designs ran, {refused} could not (summary.md says why)'
                  + (f', {unmodelled} flexures not modelled on bending walls' if unmodelled
                     else ''))
