@@ -177,3 +177,18 @@ def test_the_design_study_page_quotes_the_committed_run():
     missing += [n for n in re.findall(r'(\d+) designs', quoted)
                 if f'dominated by {n} of the designs' not in summary]
     assert not missing, missing
+
+
+def test_the_study_on_a_dask_cluster_equals_the_local_pool():
+    """--scheduler: the geometries go to Dask workers and come back in order, the same runs."""
+    distributed = pytest.importorskip('distributed')
+    from saw_ros.analysis.cluster import DaskPool
+    local = design.run_study(BASE, 'lhs', 2, walls=('rigid',), settle=SETTLE, measure=MEASURE)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=':0') as cluster:
+        with DaskPool(cluster.scheduler_address) as pool:
+            remote = design.run_study(BASE, 'lhs', 2, walls=('rigid',), settle=SETTLE,
+                                      measure=MEASURE, pool=pool)
+    assert [(r.design, r.flexure, r.status) for r in remote.runs] == \
+        [(r.design, r.flexure, r.status) for r in local.runs]
+    assert [r.speed for r in remote.runs if r.ok] == [r.speed for r in local.runs if r.ok]
