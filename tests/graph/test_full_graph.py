@@ -51,7 +51,9 @@ def test_in_process_campaign_gives_the_same_numbers_as_the_nodes_over_dds(graph_
     (inproc,) = run_campaign([SLOPE_DEG], [VOLTS], workers=1)
     assert inproc.ar_sim == pytest.approx(dds['ar_sim'], rel=0.005)
     assert inproc.ar_tracked == pytest.approx(dds['ar_tracked'], rel=0.005)
-    assert inproc.v_theory == pytest.approx(dds['v_theory_m_s'], rel=1e-9)
+    # The helix's mean frequency over whole turns: the node interpolates the turns' ends between
+    # joint states 10 ms apart (100 Hz), the campaign between steps: 8e-8 apart.
+    assert inproc.v_theory == pytest.approx(dds['v_theory_m_s'], rel=1e-6)
 
 
 def test_the_bag_opens_in_a_viewer_and_gives_back_the_camera_video(graph_run, tmp_path):
