@@ -13,6 +13,10 @@ crawls through, feels) while keeping the mean speed within SPEED_TOLERANCE of th
 drive and the mean electrical power V i no higher. Every generation is one batch of the core
 (one scenario per candidate) on the pool, as the calibration's are.
 
+``reference``: another robot whose constant drives the vibration is counted against, at the
+same speed; the compliant robot's shaped drive against the rigid robot's constant voltage
+(issue 31, docs/compliant_robot.md). The speed and power constraints stay the shaped robot's own.
+
 ``motor_bandwidth`` measures what the motor can do at all: the helix speed's modulation per volt
 of a single harmonic, against the quasi-static response, at any number of harmonics per turn. The
 vibration's energy sits near the link-passing rate (docs/drive.md); where the motor cannot follow
@@ -39,6 +43,9 @@ SETTLE_S = 3.0             # the motor and the contacts settle (CCI < 2 % well b
 MEASURE_S = 4.0            # five to six helix turns at 6 V
 COEFFICIENT_BOUND = 0.6    # |a_k|, |b_k| <= 0.6 of the mean voltage
 PENALTY = 5000.0
+# The reference robot's constant drive must reach the shaped drive's speed this closely for the
+# two to be compared: near 6 V a 1 % faster robot shakes about 7 % more (docs/drive.md).
+SAME_SPEED = 0.005
 
 
 @dataclass
@@ -129,10 +136,26 @@ class ShapeResult:
     feasible: bool      # the shaped drive met the constraints and beat the constant one
     generations: int
     history: List[Dict[str, float]] = field(default_factory=list)
+    # The reference robot's constant drive at the shaped drive's speed (optimise(reference=)).
+    reference_voltage: Optional[float] = None
+    reference: Optional[Dict[str, float]] = None
 
     @property
     def vibration_reduction_pct(self) -> float:
         return 100.0 * (1.0 - self.shaped['vibration'] / self.matched['vibration'])
+
+    @property
+    def reference_reaches_speed(self) -> bool:
+        """Whether the reference robot's constant drive ran at the shaped drive's speed."""
+        return self.reference is not None and abs(
+            self.reference['speed'] / self.shaped['speed'] - 1.0) <= SAME_SPEED
+
+    @property
+    def reference_reduction_pct(self) -> Optional[float]:
+        """Return the reduction against the reference robot at the same speed, % (None: none)."""
+        if self.reference is None or not self.reference_reaches_speed:
+            return None
+        return 100.0 * (1.0 - self.shaped['vibration'] / self.reference['vibration'])
 
     def profile(self) -> PhaseProfile:
         return PhaseProfile([self.mean_voltage], self.harmonics, [self.coefficients])
@@ -162,9 +185,13 @@ class ConstantCurve:
         return np.interp(speed, self.speed, values)
 
 
-def cost(outcome: DriveOutcome, curve: ConstantCurve, speed: float) -> np.ndarray:
+def cost(outcome: DriveOutcome, curve: ConstantCurve, speed: float,
+         reference: Optional[ConstantCurve] = None) -> np.ndarray:
     """
     Vibration over a constant drive's at the same speed, plus penalties past the constraints.
+
+    ``reference``: the constant drives of another robot to count the vibration against (the
+    power stays against ``curve``, the shaped robot's own).
 
     Quadratic penalties outside the speed band (kept at 3/4 of SPEED_TOLERANCE) and above 99.5 %
     of the constant drive's power at the same speed: margins, so that the best candidate still
@@ -174,7 +201,8 @@ def cost(outcome: DriveOutcome, curve: ConstantCurve, speed: float) -> np.ndarra
     speed_off = np.abs(outcome.speed / speed - 1.0) - 0.75 * SPEED_TOLERANCE
     power_over = outcome.power / curve.at(outcome.speed, curve.power) - 0.995
     # Stalled or reversed runs (a profile that drops to 0 V) sit far outside the band.
-    return (outcome.vibration / curve.at(outcome.speed, curve.vibration)
+    against = curve if reference is None else reference
+    return (outcome.vibration / against.at(outcome.speed, against.vibration)
             + PENALTY * np.maximum(speed_off, 0.0) ** 2
             + PENALTY * np.maximum(power_over, 0.0) ** 2)
 
@@ -205,16 +233,24 @@ def feasible(shaped: Dict[str, float], constant: Dict[str, float],
 def optimise(base: Scenario, pool: Optional[Pool] = None, generations: int = 60,
              population: int = 12, sigma: float = 0.08, seed: int = 1,
              harmonics: Sequence[int] = HARMONICS,
-             progress: Optional[Callable[[int, float], None]] = None) -> ShapeResult:
-    """Search the profile (CMA-ES) that keeps the speed of the constant base.motor.voltage."""
+             progress: Optional[Callable[[int, float], None]] = None,
+             reference: Optional[Scenario] = None) -> ShapeResult:
+    """
+    Search the profile (CMA-ES) that keeps the speed of the constant base.motor.voltage.
+
+    ``reference``: a robot (the rigid one, for a compliant ``base``) whose constant drives the
+    vibration is minimised against, at the same speed; measured at the end beside ``matched``.
+    """
     from cmaes import CMA  # noqa: I100: only the search needs it (a dependency of calibrate)
 
     pool = pool if pool is not None else LocalPool(1)
     harmonics = [int(h) for h in harmonics]
     voltage = base.motor.voltage
     dims = 2 * len(harmonics)
-    const = _figures(evaluate(base, [voltage], np.zeros((1, dims)), harmonics), 0)
+    start_outcome = evaluate(base, [voltage], np.zeros((1, dims)), harmonics)
+    const = _figures(start_outcome, 0)
     curve = ConstantCurve(base, harmonics)
+    reference_curve = None if reference is None else ConstantCurve(reference, harmonics)
     # The mean voltage within +-15 %: the speed may move 2 %, and the profile's shape changes
     # the speed a mean voltage gives by a few per cent.
     low = np.r_[0.85 * voltage, np.full(dims, -COEFFICIENT_BOUND)]
@@ -224,13 +260,15 @@ def optimise(base: Scenario, pool: Optional[Pool] = None, generations: int = 60,
     start = (np.r_[voltage, np.zeros(dims)] - low) / span
     search = CMA(mean=start, sigma=sigma, bounds=np.c_[np.zeros(dims + 1), np.ones(dims + 1)],
                  population_size=population, seed=seed)
-    best_x, best_cost, best_fig = np.r_[voltage, np.zeros(dims)], 1.0, const
+    # The constant drive's own cost (1 against its own curve, to interpolation) is the bar.
+    best_x, best_fig = np.r_[voltage, np.zeros(dims)], const
+    best_cost = float(cost(start_outcome, curve, const['speed'], reference_curve)[0])
     history = []
     for generation in range(generations):
         unit = [search.ask() for _ in range(search.population_size)]
         x = low + np.array(unit) * span
         outcome = evaluate_on(pool, base, x[:, 0], x[:, 1:], harmonics)
-        costs = cost(outcome, curve, const['speed'])
+        costs = cost(outcome, curve, const['speed'], reference_curve)
         search.tell(list(zip(unit, costs)))
         i = int(np.argmin(costs))
         if costs[i] < best_cost:
@@ -240,9 +278,14 @@ def optimise(base: Scenario, pool: Optional[Pool] = None, generations: int = 60,
         if progress is not None:
             progress(generation, best_cost)
     matched_voltage, matched = matched_constant(base, best_fig['speed'], curve, harmonics)
+    reference_voltage, reference_figures = None, None
+    if reference is not None and reference_curve is not None:
+        reference_voltage, reference_figures = matched_constant(
+            reference, best_fig['speed'], reference_curve, harmonics)
     return ShapeResult(voltage, harmonics, float(best_x[0]), [float(c) for c in best_x[1:]],
                        const, best_fig, matched_voltage, matched,
-                       feasible(best_fig, const, matched), generations, history)
+                       feasible(best_fig, const, matched), generations, history,
+                       reference_voltage, reference_figures)
 
 
 def spectrum(signal: np.ndarray, dt: float):
@@ -427,7 +470,7 @@ def write_report(result: ShapeResult, base: Scenario, out_dir: Path,
         plt.close(fig)
 
     bandwidth = motor_bandwidth(base, BANDWIDTH_HARMONICS)
-    summary = {'result': asdict(result),
+    summary = {'result': asdict(result), 'flexure': asdict(base.flexure),
                'vibration_reduction_pct': result.vibration_reduction_pct,
                'vibration_reduction_vs_base_pct':
                    100.0 * (1.0 - result.shaped['vibration'] / result.constant['vibration']),
@@ -435,6 +478,7 @@ def write_report(result: ShapeResult, base: Scenario, out_dir: Path,
                                             - 1.0),
                'power_change_pct': 100.0 * (result.shaped['power'] / result.matched['power']
                                             - 1.0),
+               'reference_reduction_pct': result.reference_reduction_pct,
                'band_shares': {'constant': shares[0], 'shaped': shares[1]},
                'motor_bandwidth': {str(k): v for k, v in bandwidth.items()},
                'slopes': rows}
@@ -458,6 +502,31 @@ def link_passing_sentence(bandwidth: Dict[str, float], share: float,
     return (f'{100 * share:.0f} % of the vibration sits at the link-passing rate, and this motor '
             f'passes {100 * response:.0f} % of a voltage ripple there (harmonic {passing}): the '
             f'profile acts on it directly ({reduction_pct:.0f} % less vibration).')
+
+
+def reference_text(r: Dict[str, Any], reduction_pct: Optional[float]) -> List[str]:
+    """Return the report's lines on the reference (rigid) robot at the shaped drive's speed."""
+    rigid, shaped, matched = r['reference'], r['shaped'], r['matched']
+    if reduction_pct is None:
+        return ['', '## Against the rigid robot', '',
+                f'NO comparison: the rigid robot (this scenario with `flexure.stiffness` = 0) '
+                f'did not reach the shaped drive\'s {100 * shaped["speed"]:.3f} cm/s at a '
+                f'constant voltage (nearest: {100 * rigid["speed"]:.3f} cm/s at '
+                f'{r["reference_voltage"]:.3f} V), so the vibrations cannot be compared at the '
+                f'same speed.']
+    return [
+        '', '## Against the rigid robot', '',
+        f'The rigid robot (this scenario with `flexure.stiffness` = 0) at the constant '
+        f'{r["reference_voltage"]:.3f} V that gives the shaped drive\'s speed, measured: '
+        f'{rigid["vibration"]:.3f} m/s^2 RMS. Flexures and shaped drive together'
+        + ('' if r['feasible'] else ' (no profile beat the constant drive: its figures)')
+        + f': '
+        f'{shaped["vibration"]:.3f} m/s^2 RMS, {reduction_pct:.1f} % less at the same speed; '
+        f'the flexures alone (constant {r["matched_voltage"]:.3f} V) '
+        f'{100.0 * (1.0 - matched["vibration"] / rigid["vibration"]):.1f} % less. Electrical '
+        f'energy per metre: rigid {rigid["power"] / rigid["speed"]:.2f} J/m, flexures '
+        f'{matched["power"] / matched["speed"]:.2f} J/m, flexures and shaped drive '
+        f'{shaped["power"] / shaped["speed"]:.2f} J/m.']
 
 
 def report_text(summary: Dict[str, Any]) -> str:
@@ -490,6 +559,8 @@ def report_text(summary: Dict[str, Any]) -> str:
         + ('The shaped drive meets them.' if r['feasible'] else
            'NO candidate beat the constant drive within them: the constant drive stands (run '
            'more generations).'),
+        *([] if r.get('reference') is None else
+          reference_text(r, summary['reference_reduction_pct'])),
         '', '![spectrum](spectrum.png)', '',
         "## Where the vibration's energy sits", '',
         f"Share of the normal acceleration's power (link passing: "
