@@ -23,7 +23,7 @@ works for at most ``BATCH_BUDGET`` of wall time (and ``MAX_BATCH`` steps) so tha
 changes and ~/reset are served in between.
 
 Loss. The node publishes every step once, in order, reliably. Reliable KEEP_LAST queues do not
-slow the publisher down, though: a subscriber that cannot keep up with the rate (rtf x 6000
+slow the publisher down, though: a subscriber that cannot keep up with the rate (rtf x 5100
 messages/s) loses the oldest messages of its queue. Publisher acknowledgements cannot prevent
 that (a KEEP_LAST reader acknowledges what it then drops, and Fast DDS acknowledges in bursts,
 0-2 s late), so there is no back-pressure: pick a real_time_factor the subscribers sustain
@@ -152,7 +152,7 @@ class SimulatorNode(Node):
         self._publishers_all = tuple(
             self.create_publisher(msg_type, topic, publisher_profile(topics.topic(topic).qos))
             for topic, msg_type in TOPICS.items())
-        # Each step's six messages go straight to the publishers' handles: they are bytes, and
+        # Each step's messages go straight to the publishers' handles: they are bytes, and
         # Publisher.publish's type checks and handle guard cost as much as the write itself.
         (self._publish_clock, self._publish_pose, self._publish_twist, self._publish_contacts,
          self._publish_wrench, self._publish_joints) = (
