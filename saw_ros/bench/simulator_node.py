@@ -46,6 +46,19 @@ BUSY_EXIT = 3               # the subscriber's exit code when its DDS domain is 
 PROBE_S = 1.0               # s the subscriber looks for other publishers before subscribing
 
 
+def steps_between(topic: str) -> int:
+    """Return the simulator's steps between two messages on ``topic`` (joint states: 10)."""
+    from saw_ros.interface import topics
+    from saw_ros.ros.nodes.simulator import JOINT_STATES_RATE
+    return round(1000 / JOINT_STATES_RATE) if topic == topics.JOINT_STATES else 1
+
+
+def expected_messages(steps: int) -> int:
+    """Return the messages the simulator publishes in ``steps`` steps on its stepped topics."""
+    from saw_ros.ros.nodes.simulator import TOPICS
+    return sum(steps // steps_between(t) for t in TOPICS)
+
+
 def subscriber(steps: int, timeout: float) -> int:
     """
     Child process: subscribe to every topic, count stamps, print one JSON line, exit.
@@ -66,8 +79,7 @@ def subscriber(steps: int, timeout: float) -> int:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
 
-    from saw_ros.interface import topics
-    from saw_ros.ros.nodes.simulator import JOINT_STATES_RATE, TOPICS
+    from saw_ros.ros.nodes.simulator import TOPICS
     from saw_ros.graph.process import wait_for
 
     stop = []
@@ -85,9 +97,7 @@ def subscriber(steps: int, timeout: float) -> int:
     step_ns = 1_000_000
     state = {t: {'count': 0, 'last': 0, 'bad': 0, 'first': 0, 'gaps': 0, 'end': False}
              for t in TOPICS}
-    # Steps between two messages: 1, and 10 for /saw/joint_states (JOINT_STATES_RATE).
-    every = {t: round(1000 / JOINT_STATES_RATE) if t == topics.JOINT_STATES else 1
-             for t in TOPICS}
+    every = {t: steps_between(t) for t in TOPICS}
     wall = {'first': None, 'last': None, 'clock': None}
 
     def make_callback(topic):
@@ -267,7 +277,7 @@ def _rung(rtf: float, duration: float, logs: Path, timeout) -> dict:
     for line in sub.output().splitlines():
         if line.startswith('{'):
             result.update(json.loads(line))
-    result.setdefault('lost', 6 * steps)
+    result.setdefault('lost', expected_messages(steps))     # the subscriber said nothing
     if sim is not None and result.get('first_clock_monotonic') is not None:
         result['start_s'] = result['first_clock_monotonic'] - started
     result['behind_warnings'] = sim.output().count('falling behind') if sim is not None else 0
