@@ -7,8 +7,10 @@ that is not ROS's; a misspelt ``-p`` name is named in a warning and the node run
 and ``-h`` list the node's parameters from the spec tables it declares, exit 0, start nothing and
 write no file. Add a row whenever a user finds a new way in.
 
-Every node runs as its own process in the run's isolated DDS domain (tests/conftest.py); the
-bad inputs end it before it spins, so a node's cases run side by side.
+A bad input ends a node before it spins, so every node's main meets its bad inputs in one
+process (a file per case for its output), which saves starting an interpreter for each of 63
+cases; two executables are started for real for the exit code, and the misspelt names run each
+node as its own process in the run's isolated DDS domain (tests/conftest.py).
 """
 import importlib
 import json
@@ -168,23 +170,42 @@ def test_command_line_mistakes_end_every_node_with_one_line(tmp_path):
     assert not any((tmp_path / node).exists() for node in CASES)   # nothing created
 
 
-@pytest.mark.parametrize('node', sorted(CASES))
-def test_a_bad_value_ends_the_node_with_one_line(node, tmp_path):
-    """Out of range and of the wrong type, through the real executable: exit 1, one line."""
-    ok, _, (low, value, allowed), (name, wrong, kind), _ = CASES[node]
-    paths = {'tmp': tmp_path, 'bag': tmp_path / 'no_bag', 'frames': tmp_path / 'no_frames'}
-    ok = _filled(ok, paths)
-    table = {   # case: (argv, texts the one line holds)
-        'out of range': (node_command(node, params=dict(ok, **{low: value})),
-                         (f'{low} = ', 'out of range', f'allowed {allowed}')),
-        'wrong type': (node_command(node, params=dict(ok, **{name: wrong})),
-                       (f'{name} = {wrong!r} is invalid', kind)),
-    }
-    procs = {case: _start(argv, tmp_path) for case, (argv, _) in table.items()}
-    for case, proc in procs.items():
-        code, out = _finish(proc)
-        _one_fatal_line(node, case, code, out, table[case][1])
-    assert not (tmp_path / 'bag').exists()          # the recorder refused before creating it
+def test_a_bad_value_ends_every_node_with_one_line(tmp_path):
+    """
+    Out of range and of the wrong type: each node's main refuses at its start, exit code 1.
+
+    In the one process of the cases above (each main starts and shuts down rclpy); the exit
+    code of a real executable is test_a_bad_value_ends_the_executable below.
+    """
+    cases, expected = [], []
+    for node in sorted(CASES):
+        ok, _, (low, value, allowed), (name, wrong, kind), _ = CASES[node]
+        work = tmp_path / node
+        work.mkdir()
+        ok = _filled(ok, {'tmp': work, 'bag': work / 'no_bag', 'frames': work / 'no_frames'})
+        table = {   # case: (argv, texts the one line holds)
+            'out of range': (node_command(node, params=dict(ok, **{low: value})),
+                             (f'{low} = ', 'out of range', f'allowed {allowed}')),
+            'wrong type': (node_command(node, params=dict(ok, **{name: wrong})),
+                           (f'{name} = {wrong!r} is invalid', kind)),
+        }
+        for case, (argv, texts) in table.items():
+            cases.append((node, [node] + argv[3:], work))
+            expected.append((node, case, texts))
+    for (node, case, texts), (code, out) in zip(expected, _mains(cases, tmp_path)):
+        _one_fatal_line(node, case, code, out, texts)
+    assert not any((tmp_path / node / 'bag').exists() for node in CASES)   # recorder: refused
+
+
+def test_a_bad_value_ends_the_executable(tmp_path):
+    """The simulator and the recorder as processes: exit code 1 and the one line."""
+    for node in ('simulator', 'recorder'):
+        ok, _, (low, value, allowed), _, _ = CASES[node]
+        ok = _filled(ok, {'tmp': tmp_path})
+        code, out = _finish(_start(node_command(node, params=dict(ok, **{low: value})),
+                                   tmp_path))
+        _one_fatal_line(node, 'out of range', code, out, (f'{low} = ', 'out of range'))
+    assert not (tmp_path / 'bag').exists()
 
 
 @pytest.mark.parametrize('node', sorted(CASES))
