@@ -28,12 +28,14 @@ def nodes(ros_context, tmp_path, request):
     from saw_ros.ros.qos import STREAM_QOS
     from saw_ros.ros.nodes.vision import VisionNode
 
-    video = tmp_path / 'camera.mp4'
+    transport = getattr(request, 'param', 'raw')
+    # (the camera's video once, with raw images: what it holds does not depend on the transport)
+    video = tmp_path / 'camera.mp4' if transport == 'raw' else None
     camera = CameraNode(context=ros_context, parameter_overrides=[
-        Parameter('video_path', value=str(video))])
+        Parameter('video_path', value=str(video or ''))])
     vision = VisionNode(context=ros_context, parameter_overrides=[
         Parameter('steady_window', value=STEADY),
-        Parameter('image_transport', value=getattr(request, 'param', 'raw'))])
+        Parameter('image_transport', value=transport)])
     source = Node('test_source', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     for n in (camera, vision, source):
@@ -115,6 +117,8 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes, drive_camera):
 
     # The camera's video, read back offline, gives the same speed within 0.5 %.
     camera.close()
+    if video is None:
+        return
     results, tracker = track_video(video, {'scale': 1200.0}, TrackerConfig(steady_window=STEADY))
     assert len(results) == frames and tracker.counters.ok == frames
     offline = results[-1].steady_speed
