@@ -17,6 +17,7 @@ as from the camera node). At the end it waits for reliable delivery, prints ``pu
 from __future__ import annotations
 
 import time
+from typing import Dict
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, TwistStamped, WrenchStamped
@@ -149,6 +150,12 @@ class LoadGen(Node):
             print(f'published {topic} {n}', flush=True)
         print(f'elapsed {elapsed:.3f}', flush=True)
         print(f'max_lag {max_lag:.4f} at {lag_at:.3f}', flush=True)
+
+
+def published_counts(output: str) -> Dict[str, int]:
+    """Return {topic: messages} from a load generator's ``published <topic> <n>`` lines."""
+    return {line.split()[1]: int(line.split()[2]) for line in output.splitlines()
+            if line.startswith('published ')}
 
 
 def main(args=None) -> int:

@@ -46,6 +46,7 @@ class TrialFailed(RuntimeError):
 
 def _trial(work: Path, name: str, env, **load):
     from saw_ros.bag import BagReader
+    from saw_ros.bench.loadgen import published_counts
     from saw_ros.graph.process import ManagedProcess, node_command, wait_for
     out = work / name
     shutil.rmtree(out, ignore_errors=True)        # a reused --logs folder
@@ -76,12 +77,9 @@ def _trial(work: Path, name: str, env, **load):
                 proc.stop(30)
     if rec.returncode != 0:
         raise TrialFailed(f'recorder exited with {rec.returncode}; see {rec.log_path}')
-    published, elapsed = {}, load.get('duration', 1.0)
+    published, elapsed = published_counts(gen.output()), load.get('duration', 1.0)
     for line in gen.output().splitlines():
-        if line.startswith('published '):
-            _, topic, n = line.split()
-            published[topic] = int(n)
-        elif line.startswith('elapsed '):
+        if line.startswith('elapsed '):
             elapsed = float(line.split()[1])
     try:
         counts = {n: t.count for n, t in BagReader(str(out)).topics().items()}

@@ -14,6 +14,7 @@ import subprocess
 import uuid
 
 import pytest
+from saw_ros.bench.loadgen import published_counts
 from saw_ros.graph.process import isolated_ros_env, ManagedProcess, node_command, wait_for
 from saw_ros.interface import topics
 from saw_ros.interface.config import config_path
@@ -138,8 +139,7 @@ def test_loadgen_and_recorder_on_two_hosts_lose_nothing(hosts, tmp_path):
                                                   tmp_path, 30)
     assert matched, rec.output()
     assert gen.wait(60) == 0, gen.output()
-    published = {line.split()[1]: int(line.split()[2]) for line in gen.output().splitlines()
-                 if line.startswith('published ')}
+    published = published_counts(gen.output())
     assert rec.stop(timeout=30) == 0
     final = [line for line in rec.output().splitlines() if 'finished:' in line][0]
     assert final.endswith('; lost 0'), final

@@ -16,6 +16,7 @@ import pytest
 
 from saw_ros.bag import BagReader
 from saw_ros.bag import schema
+from saw_ros.bench.loadgen import published_counts
 from saw_ros.graph.process import isolated_ros_env, ManagedProcess, node_command, wait_for
 from saw_ros.interface import share
 
@@ -166,8 +167,7 @@ def test_recorder_writes_a_full_bag_without_ament_prefix_path(tmp_path):
         package='saw_ros.bench'), env,
         tmp_path / 'logs', cwd=tmp_path)
     assert gen.wait(90) == 0, gen.output()
-    published = {line.split()[1]: int(line.split()[2]) for line in gen.output().splitlines()
-                 if line.startswith('published ')}
+    published = published_counts(gen.output())
     assert rec.stop(30) == 0, rec.output()
     assert 'AMENT_PREFIX_PATH' not in rec.output()
     reader = BagReader(str(out))

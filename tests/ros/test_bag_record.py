@@ -6,6 +6,7 @@ import sys
 import pytest
 
 from saw_ros.bag import BagReader
+from saw_ros.bench.loadgen import published_counts
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -24,12 +25,7 @@ def run_loadgen(tmp_path, **params):
                           node_command('loadgen', params=params, package='saw_ros.bench'),
                           os.environ, tmp_path / 'logs')
     assert proc.wait(60) == 0, proc.output()
-    counts = {}
-    for line in proc.output().splitlines():
-        if line.startswith('published '):
-            _, topic, n = line.split()
-            counts[topic] = int(n)
-    return counts
+    return published_counts(proc.output())
 
 
 def recording(rec):

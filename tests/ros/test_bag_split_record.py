@@ -13,6 +13,7 @@ from mcap.reader import make_reader
 import pytest
 from saw_ros.bag import BagReader
 from saw_ros.bag.reindex import reindex
+from saw_ros.bench.loadgen import published_counts
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 import yaml
 
@@ -31,15 +32,6 @@ def loadgen(tmp_path, **params):
     return ManagedProcess('loadgen', node_command('loadgen', params=params,
                                                   package='saw_ros.bench'),
                           os.environ, tmp_path / 'logs')
-
-
-def published(proc):
-    counts = {}
-    for line in proc.output().splitlines():
-        if line.startswith('published '):
-            _, topic, n = line.split()
-            counts[topic] = int(n)
-    return counts
 
 
 def sequences(directory):
@@ -71,7 +63,8 @@ def test_recorder_splits_by_duration_and_loses_nothing_at_the_seams(tmp_path):
         assert summary.statistics.message_count == entry['message_count'] > 0
         assert entry['duration']['nanoseconds'] <= 400_000_000
     numbers = sequences(out)
-    assert {t: len(s) for t, s in numbers.items() if t in published(gen)} == published(gen)
+    published = published_counts(gen.output())
+    assert {t: len(s) for t, s in numbers.items() if t in published} == published
     assert_consecutive(numbers)
 
 

@@ -11,6 +11,7 @@ import signal
 
 import pytest
 from saw_ros.bag import BagReader
+from saw_ros.bench.loadgen import published_counts
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.ros.nodes.recorder import LossCounter
 import yaml
@@ -54,8 +55,7 @@ def _record(tmp_path, rec_params, gen_params):
     assert len(final) == 1, rec.output()
     meta = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     lost = json.loads(meta['custom_data']['saw_ros.lost_messages'])
-    published = {line.split()[1]: int(line.split()[2]) for line in gen.output().splitlines()
-                 if line.startswith('published ')}
+    published = published_counts(gen.output())
     return final[0], lost, published, BagReader(str(out))
 
 
@@ -114,8 +114,7 @@ def test_recorder_reports_what_was_published_before_it_matched(tmp_path, ros_con
     assert gen.wait(90) == 0, gen.output()
     rec.signal(signal.SIGINT)
     assert rec.wait(30) == 0, rec.output()
-    published = {line.split()[1]: int(line.split()[2]) for line in gen.output().splitlines()
-                 if line.startswith('published ')}
+    published = published_counts(gen.output())
     meta = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     lost = json.loads(meta['custom_data']['saw_ros.lost_messages'])
     at_start = json.loads(meta['custom_data']['saw_ros.lost_at_start'])
