@@ -7,6 +7,7 @@ condition with a timeout.
 """
 import math
 import struct
+import time
 
 import numpy as np
 import pytest
@@ -33,7 +34,15 @@ def start(name, params, tmp_path):
 
 
 class Watcher:
-    """Every per-step topic and /saw/motor, raw; a publisher of commands."""
+    """
+    The clock, the motor, the joint states and the pose, raw; a publisher of commands.
+
+    Only what the tests read: each 1 kHz topic is a Python callback a step in this process, and
+    with all six the watcher fell a second behind the simulator on a busy machine (its clock,
+    read from the queue's backlog, was that old).
+    """
+
+    TOPICS = (table.CLOCK, table.MOTOR, table.JOINT_STATES, table.POSE)
 
     def __init__(self, context):
         from rclpy.executors import SingleThreadedExecutor
@@ -41,11 +50,18 @@ class Watcher:
         self.node = Node('command_watcher', context=context)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
-        self.raw = {name: [] for name in list(TOPICS) + [table.MOTOR]}
+        self.raw = {name: [] for name in self.TOPICS}
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         for name in self.raw:
             self.node.create_subscription(message_class(table.topic(name).type), name,
                                           self.raw[name].append, qos, raw=True)
+        # The simulator's wait_for_subscribers wants a reader on each of its topics: the others
+        # on a node no executor spins (KEEP_LAST 1: DDS overwrites, nothing is ever taken).
+        self.idle = Node('command_watcher_idle', context=context)
+        for name in TOPICS:
+            if name not in self.raw:
+                self.idle.create_subscription(message_class(table.topic(name).type), name,
+                                              lambda _: None, QoSProfile(depth=1), raw=True)
         entry = table.topic(table.MOTOR_COMMANDS)
         self.command_type = message_class(entry.type)
         self.publisher = self.node.create_publisher(self.command_type, entry.name,
@@ -57,6 +73,15 @@ class Watcher:
     def clock_ns(self):
         return stamp_of(self.raw[table.CLOCK][-1]) if self.raw[table.CLOCK] else 0
 
+    def drain(self, timeout=5.0):
+        """Take the messages already delivered, up to the first moment none is waiting."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            before = sum(map(len, self.raw.values()))
+            self.executor.spin_once(timeout_sec=0)
+            if sum(map(len, self.raw.values())) == before:
+                return
+
     def until_clock(self, seconds, timeout=30):
         assert wait_for(lambda: self.clock_ns() >= seconds * NS, timeout, spin=self.spin)
 
@@ -66,6 +91,7 @@ class Watcher:
     def close(self):
         self.executor.shutdown(timeout_sec=1)
         self.node.destroy_node()
+        self.idle.destroy_node()
 
 
 def test_commands_drive_the_motor_bad_ones_are_refused_and_a_timeout_hands_back(
@@ -86,6 +112,7 @@ def test_commands_drive_the_motor_bad_ones_are_refused_and_a_timeout_hands_back(
         while watcher.clock_ns() < 1.5 * NS:         # a controller holding 12 V
             watcher.command(12.0)
             watcher.until_clock(watcher.clock_ns() / NS + 0.05)
+        watcher.drain()
         stopped_ns = watcher.clock_ns()
         assert wait_for(lambda: simulator.returncode is not None, 30, spin=watcher.spin)
         wait_for(lambda: False, 0.5, spin=watcher.spin)     # what is still in flight
