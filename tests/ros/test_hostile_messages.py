@@ -371,7 +371,17 @@ def test_every_node_survives_every_hostile_message(graph, capsys):
     # Each node counted refusals on each topic it was sent hostile messages on.
     pending = lambda: [(p, n) for n, readers in targets.items() for p in readers  # noqa: E731
                        if probe.refused(p, n) == 0]
-    assert wait_for(lambda: not pending(), 30.0, spin=probe.spin), (pending(), probe.inputs)
+    # A reader whose side of the match was not complete when the probe's was loses what was
+    # sent in between (volatile topics; seen once, the camera's /parameter_events): a topic
+    # still uncounted after 10 s is sent again, twice at most.
+    for _ in range(2):
+        if wait_for(lambda: not pending(), 10.0, spin=probe.spin):
+            break
+        for name in {n for _, n in pending()}:
+            for label, msg in variants(name, probe.clock_ns):
+                probe.publishers[name].publish(msg)
+                probe.spin(0.002)
+    assert wait_for(lambda: not pending(), 10.0, spin=probe.spin), (pending(), probe.inputs)
     # ... and runs on: alive, publishing.
     assert wait_for(lambda: all(probe.heard[n] > heard[n] for n in heard)
                     and all(probe.reports[p] > reports[p] for p in GRAPH), 30.0,
