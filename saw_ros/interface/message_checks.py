@@ -127,12 +127,13 @@ def compressed_size(data: bytes) -> Optional[Tuple[int, int]]:
     return None
 
 
-def compressed_image(format_: str, data: bytes, max_pixels: int, max_bytes: int) -> None:
+def compressed_image(format_: str, data: bytes, max_pixels: int,
+                     max_bytes: int) -> Tuple[int, int]:
     """
     Refuse a CompressedImage that cannot be a frame we decode, from its bytes' header alone.
 
     Empty, more than ``max_bytes``, not a JPEG or PNG by its header, a declared size of 0 or more
-    than ``max_pixels``.
+    than ``max_pixels``. Return the size it declares, (width, height).
     """
     if not data:
         raise Refused('empty image', f'no data (format {format_!r})')
@@ -148,6 +149,7 @@ def compressed_image(format_: str, data: bytes, max_pixels: int, max_bytes: int)
     if w * h > max_pixels:
         raise Refused('image too large', f'declares {w}x{h}, over the limit of {max_pixels} '
                                          'pixels')
+    return w, h
 
 
 def camera_matrix(k: Sequence[float], width: int, height: int, max_pixels: int) -> None:

@@ -33,10 +33,15 @@ def image_to_array(msg: Any) -> Tuple[np.ndarray, str]:
     return buf[:h * step].reshape(h, step)[:, :3 * w].reshape(h, w, 3), msg.encoding
 
 
-def decode(msg: Any) -> Tuple[np.ndarray, str]:
-    """Return (H x W x 3 uint8 image, encoding) of an Image or a CompressedImage."""
+def decode(msg: Any, reduced: int = 1) -> Tuple[np.ndarray, str]:
+    """
+    Return (H x W x 3 uint8 image, encoding) of an Image or a CompressedImage.
+
+    ``reduced``: a CompressedImage's picture at 1 / ``reduced`` of its size
+    (``compressed.decode``); an Image is always whole.
+    """
     if hasattr(msg, 'format'):
-        return compressed.decode(msg.format, msg.data)
+        return compressed.decode(msg.format, msg.data, reduced)
     return image_to_array(msg)
 
 

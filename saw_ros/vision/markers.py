@@ -159,6 +159,15 @@ class Candidate:
         return complex(self.u, self.v)
 
 
+def check_reduced(reduced: int, downscale: int) -> int:
+    """Return ``reduced`` if detection can take a picture reduced by it; ValueError otherwise."""
+    if isinstance(reduced, bool) or not isinstance(reduced, (int, np.integer)) or reduced < 1 \
+            or downscale % reduced:
+        raise ValueError(f'a picture reduced by {reduced!r}: needs a positive integer that '
+                         f'divides the downscale {downscale}')
+    return int(reduced)
+
+
 def shrink(image: np.ndarray, factor: int) -> np.ndarray:
     """Return the image shrunk by ``factor`` as detection does it (bilinear)."""
     h, w = image.shape[:2]
@@ -167,25 +176,35 @@ def shrink(image: np.ndarray, factor: int) -> np.ndarray:
 
 
 def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
-           encoding: str = 'bgr8', small: Optional[np.ndarray] = None) -> List[Candidate]:
+           encoding: str = 'bgr8', small: Optional[np.ndarray] = None,
+           reduced: int = 1) -> List[Candidate]:
     """
     Return the pink blobs in a BGR (or RGB) uint8 image, heaviest first.
 
     Each with its sub-pixel centroid (image pixels), area, colour and roundness. ``small``: the
     whole image already shrunk (``shrink``), when there is no region of interest.
+
+    ``reduced``: the image is the picture at 1 / ``reduced`` of its size, as a JPEG decoder's
+    DCT scaling gives it (``compressed.decode(..., reduced=2)``; ``config.downscale`` a multiple
+    of it); centres, areas and the region of interest stay in the picture's own pixels.
+    Pinkness R + B - 2 G is chroma alone (Y cancels), which a 4:2:0 JPEG holds at half
+    resolution: the half-size decode keeps all of it.
     """
     if image is None or image.ndim != 3 or image.shape[2] != 3:
         raise ValueError('detect needs an HxWx3 colour image')
     if encoding not in ('bgr8', 'rgb8'):
         raise ValueError(f'unsupported encoding {encoding!r}: use bgr8 or rgb8')
+    r = check_reduced(reduced, config.downscale)
     ox = oy = 0
     if config.roi is not None:
-        x0, y0, x1, y1 = config.roi
+        # The reduced pixels wholly inside the region.
+        x0, y0 = (-(-v // r) for v in config.roi[:2])
+        x1, y1 = (v // r for v in config.roi[2:])
         x1, y1 = min(x1, image.shape[1]), min(y1, image.shape[0])
         if x0 >= x1 or y0 >= y1:
             return []
         image, ox, oy = image[y0:y1, x0:x1], x0, y0
-    s = config.downscale
+    s = config.downscale // r
     h, w = image.shape[:2]
     if w // s < 3 or h // s < 3:
         return []
@@ -206,7 +225,10 @@ def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
     chans = small.astype(np.int16)
     pinkness = chans[..., red] + chans[..., blue] - 2 * chans[..., 1]
     mask[pinkness < config.pink_min] = 0
-    count, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    # Grana's block-based labelling: 0.09 ms on a 320x180 mask against 0.33 for OpenCV's
+    # default (Spaghetti, whose decision forest pays off on larger, busier masks).
+    count, _, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(mask, 8, cv2.CV_32S,
+                                                                       cv2.CCL_GRANA)
     found: List[Candidate] = []
     min_area = max(1.0, config.min_area / (s * s) * 0.5)
     margin = 2 * s + 2
@@ -236,7 +258,7 @@ def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
         pink_pos = np.maximum(pink, 0.0)
         for blob in masks:
             in_blob = blob > 0
-            n_core = int(np.count_nonzero(in_blob))
+            n_core = int(np.count_nonzero(in_blob)) * r * r
             if n_core < config.min_area * 0.3:
                 continue
             rim = cv2.dilate(blob, _KERNEL)
@@ -257,7 +279,9 @@ def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
             big, low = 0.5 * (suu + svv) + root, 0.5 * (suu + svv) - root
             rg_sum = float(rg[in_blob].sum())
             colour = float(bg[in_blob].sum()) / rg_sum if rg_sum > 0 else math.inf
-            found.append(Candidate(u, v, total, float(n_core), colour,
+            # Reduced pixel j covers the picture's r j .. r j + r - 1: centre r j + (r - 1) / 2.
+            found.append(Candidate(r * u + 0.5 * (r - 1), r * v + 0.5 * (r - 1), total * r * r,
+                                   float(n_core), colour,
                                    max(low, 0.0) / big if big > 0 else 0.0))
     # Merge fragments of one marker: keep the heaviest.
     found.sort(key=lambda c: -c.weight)

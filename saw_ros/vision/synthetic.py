@@ -18,6 +18,7 @@ import numpy as np
 
 from saw_ros.core import Scenario, simulate, Trajectory
 from saw_ros.core.metrics import run_turns, TURN
+from saw_ros.vision import compressed
 from saw_ros.vision.camera import CameraModel, FPS
 from saw_ros.vision.frames import pose_interpolator, Renderer, RenderOptions, RobotPose
 from saw_ros.vision.scene import Clutter, HOT_PINK, MAGENTA, ORANGE, ORANGE_RED, RED, SceneOptions
@@ -159,12 +160,14 @@ class Evaluation:
 def evaluate(run: Run, camera: CameraModel = CameraModel(),
              options: RenderOptions = RenderOptions(), config: TrackerConfig = TrackerConfig(),
              start: float = 0.0, hidden=lambda k: (), scene: SceneOptions = SceneOptions(),
-             tracker_camera: Optional[CameraModel] = None, end: Optional[float] = None) \
-        -> Evaluation:
+             tracker_camera: Optional[CameraModel] = None, end: Optional[float] = None,
+             jpeg_quality: Optional[int] = None, reduced: int = 1) -> Evaluation:
     """
     Render the run from ``start`` (to ``end``, default the run's end) and track it.
 
     The tracker sees ``tracker_camera`` (default: the rendering camera, so it knows the lens).
+    ``jpeg_quality``: each frame goes through a JPEG of that quality first, decoded at
+    1 / ``reduced`` of its size, as the vision node takes the camera's compressed stream.
     """
     renderer = Renderer(run.scenario.robot, run.scenario.conditions.gap, camera, options, scene)
     tracker = Tracker(tracker_camera or camera, config)
@@ -176,7 +179,10 @@ def evaluate(run: Run, camera: CameraModel = CameraModel(),
     if end is not None:
         times = times[times <= end + 1e-9]
     for k, t, pose, image in frames(run, renderer, times, hidden):
-        res = tracker.update(image, t)
+        if jpeg_quality is not None:
+            image = compressed.decode(compressed.JPEG_FORMAT,
+                                      compressed.encode_jpeg(image, jpeg_quality), reduced)[0]
+        res = tracker.update(image, t, 1 if jpeg_quality is None else reduced)
         results.append(res)
         truth = renderer.marker_surface(pose)
         pixels = renderer.marker_pixels(pose)

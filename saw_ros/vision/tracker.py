@@ -41,7 +41,7 @@ from saw_ros.vision.acquisition import Acquisition
 from saw_ros.vision.association import _Track, Association
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.egomotion import apply, CameraMotion
-from saw_ros.vision.markers import Candidate, detect, shrink, TrackerConfig
+from saw_ros.vision.markers import Candidate, check_reduced, detect, shrink, TrackerConfig
 from saw_ros.vision.measurement import (_learn, Counters, DIRECTION_PX, FrameResult, LEARN,
                                         MARKERS, Measurement, scale_from_spacing, steady_speed,
                                         TrackStatus)
@@ -233,27 +233,37 @@ class Tracker(Acquisition, Association, Measurement):
         Tracker.__init__(self, self.camera, self.config, self.encoding, self.slope_known)
 
     # -- per frame -----------------------------------------------------------------------------
-    def _camera_motion(self, image: np.ndarray, small: np.ndarray) -> np.ndarray:
+    def _camera_motion(self, image: np.ndarray, small: np.ndarray, reduced: int) -> np.ndarray:
         masks = []
         if self._last_px is not None:
             f, b = self._last_px
             along = f - b
             masks.append((b - 0.2 * along, f + 0.2 * along, 0.2 * abs(along) + 10.0))
-        transform = self.motion.update(small, image.shape[1], image.shape[0], masks)
+        transform = self.motion.update(small, image.shape[1] * reduced,
+                                       image.shape[0] * reduced, masks)
         return self.motion.transform if transform is None else transform
 
-    def update(self, image: Optional[np.ndarray], t: float) -> FrameResult:
+    def update(self, image: Optional[np.ndarray], t: float, reduced: int = 1) -> FrameResult:
+        """
+        Track one frame taken at ``t`` (s, later than the last); None: no picture this time.
+
+        ``reduced``: the image is the picture at 1 / ``reduced`` of its size (a JPEG decoded at
+        half size, ``compressed.decode``), ``config.downscale`` a multiple of it: detection and
+        the camera's motion see the same shrunk picture, and everything comes back in the
+        picture's own pixels.
+        """
         cfg = self.config
         if self._last_t is not None and t <= self._last_t:
             raise ValueError(f'frame time {t} is not after the previous one {self._last_t}')
+        check_reduced(reduced, cfg.downscale)
         self._last_t = t
         cands: List[Candidate] = []
         if image is not None:
             if image.ndim != 3 or image.shape[2] != 3:
                 raise ValueError('detect needs an HxWx3 colour image')
-            small = shrink(image, cfg.downscale)
-            cands = detect(image, cfg, self.encoding, small)
-            to_scene = self._camera_motion(image, small)
+            small = shrink(image, cfg.downscale // reduced)
+            cands = detect(image, cfg, self.encoding, small, reduced)
+            to_scene = self._camera_motion(image, small, reduced)
             if cands:
                 ideal = self.camera.undistort(np.array([c.p for c in cands]))
                 if self.motion.moving:
