@@ -40,7 +40,7 @@ extrapolated. The others load nothing and read the shape.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, cast, Sequence, Tuple, Union
+from typing import Any, Callable, cast, List, Sequence, Tuple, Union
 
 import numba
 import numpy as np
@@ -61,6 +61,10 @@ TOLERANCE = 1e-7
 # (m), of the rigid surface (Walls.solve).
 CANDIDATE_MARGIN = 0.1
 MIN_MARGIN = 1e-4
+# Up to this beta b/2 the compliance of a wall's tips is built from one decay per gap between
+# them (fill_wall): the patch's factor exp(beta b/2) stays far from overflowing, and a decay
+# that underflows belongs to a pair whose compliance is below exp(-400) of a tip's own.
+CHAIN_LIMIT = 300.0
 
 
 def _patch(r: ArrayLike, beta: Union[float, np.ndarray],
@@ -92,17 +96,19 @@ def point_deflection(r: ArrayLike, load: float, foundation: float, bending: floa
 
 
 # Columns of a scenario's walls (Walls.constants[s]): 1 where its walls bend, beta (1/m), half
-# the contact width (m), the gain 1 / (2 k b) (m/N), the tolerance of the solve (m); then what
-# the solve keeps: the largest deflection of the last step (m), the depth below which a tip
-# cannot touch (m, < 0), the Newton iterations and the steps short of the tolerance so far, and
-# how many tips per wall the last step solved for.
-ACTIVE, BETA, HALF, GAIN, TOLERANCE_COLUMN = range(5)
-LARGEST, REACH, ITERATIONS, UNCONVERGED, SOLVED_COUNT = range(5, 10)
-WALL_FIELDS = 10
+# the contact width (m), the gain 1 / (2 k b) (m/N), the tolerance of the solve (m), the patch's
+# constants of ``fill_wall`` (``patch_constants``: a tip's compliance under its own load, m/N,
+# and the complex factor of the loads outside a patch); then what the solve keeps: the largest
+# deflection of the last step (m), the depth below which a tip cannot touch (m, < 0), the
+# Newton iterations and the steps short of the tolerance so far, and how many tips the last
+# step solved for on the bottom wall (SOLVED_COUNT) and on the top one (SOLVED_COUNT + 1).
+ACTIVE, BETA, HALF, GAIN, TOLERANCE_COLUMN, ITSELF, PATCH_RE, PATCH_IM = range(8)
+LARGEST, REACH, ITERATIONS, UNCONVERGED, SOLVED_COUNT = range(8, 13)
+WALL_FIELDS = 14
 # Rows of a scenario's per-tip wall state (Walls.state[s], (WALL_ROWS, 2, n): bottom wall, top
 # wall): the deflection the last step solved at each tip (0: not solved for), the one before,
 # each tip's load on its wall (N), and the tips the last step solved for (indices along the
-# wall, the first SOLVED_COUNT of each row).
+# wall, the first walls[SOLVED_COUNT + wall] of each wall's row).
 SOLVED, SOLVED_BEFORE, LOADS, CHOSEN = range(4)
 WALL_ROWS = 4
 # Scratch rows of bend_walls before its two n x n matrices.
@@ -121,36 +127,88 @@ def patch_bracket(r: float, beta: float, half: float) -> float:
 
 
 @numba.njit(cache=CACHE)
-def fill_compliance(x: np.ndarray, count: int, beta: float, half: float, gain: float,
-                    g: np.ndarray) -> None:
+def patch_constants(beta: float, half: float, gain: float) -> Tuple[float, float, float]:
+    """
+    Return a tip's own compliance and the factor c of the loads outside a patch (m/N).
+
+    Outside a patch gain (D(r - b/2) - D(r + b/2)) = Re(exp(z r) c), z = -(1 - i) beta,
+    c = gain (exp(-z b/2) - exp(z b/2)): the decay exp(z r) apart from what depends on the
+    patch alone (0 where beta b/2 > CHAIN_LIMIT: ``fill_wall`` does not use it there). Under
+    its own load a tip gives gain (2 - 2 D(b/2)).
+    """
+    rise = np.exp(complex(-beta, beta) * half)
+    c = gain * (1.0 / rise - rise) if beta * half <= CHAIN_LIMIT else 0.0j
+    return gain * (2.0 - 2.0 * rise.real), c.real, c.imag
+
+
+@numba.njit(cache=CACHE)
+def fill_wall(x: np.ndarray, count: int, beta: float, half: float, gain: float, itself: float,
+              c_re: float, c_im: float, g: np.ndarray) -> None:
     """
     Fill g[:count, :count] (m/N): the deflection at tip i per newton on tip j of one wall.
 
-    Outside a patch D(r - b/2) - D(r + b/2) = Re(exp(z (r - b/2)) (1 - exp(z b))), z = -(1 - i)
-    beta: bounded factors however wide the patch against the decay length; under it (two tips
-    closer than half a contact width, and each tip on itself) the patch formula.
+    ``itself``, ``c_re``, ``c_im``: ``patch_constants``. Outside a patch g_ij =
+    Re(exp(z r_ij) c). Where the abscissae x[:count] are monotone (the tips of a wall in their
+    order along it), the decay from tip j to tip i is the product of the decays over the gaps
+    between them, exp(z r_ij) = exp(z r_(i-1)j) exp(z r_i(i-1)): one exponential, cosine and
+    sine per tip instead of per pair. Its real part is kept in g[i, j] and its imaginary part
+    in g[j, i] until the pair's value replaces both. Otherwise, or for a patch far wider than
+    the decay length (c would overflow), each pair on its own: gain (D(r - b/2) - D(r + b/2))
+    = Re(exp(z (r - b/2)) gain (1 - exp(z b))), bounded factors. Under a patch (two tips
+    closer than half a contact width) the patch formula.
     """
-    z = complex(-beta, beta)
-    outside = gain * (1.0 - np.exp(z * (2.0 * half)))
-    itself = gain * (2.0 - 2.0 * np.exp(z * half).real)
+    rising = falling = True
+    for i in range(1, count):
+        rising = rising and x[i] >= x[i - 1]
+        falling = falling and x[i] <= x[i - 1]
+    chain = (rising or falling) and beta * half <= CHAIN_LIMIT
+    if not chain:
+        c = gain * (1.0 - np.exp(complex(-beta, beta) * (2.0 * half)))
+        c_re, c_im = c.real, c.imag
     for i in range(count):
         g[i, i] = itself
+        if chain:
+            if i > 0:
+                # exp(z r_i(i-1)), then on along the row: exp(z r_ij) from exp(z r_(i-1)j).
+                gap = abs(x[i] - x[i - 1])
+                decay = math.exp(-beta * gap)
+                step_re, step_im = decay * math.cos(beta * gap), decay * math.sin(beta * gap)
+                g[i, i - 1], g[i - 1, i] = step_re, step_im
+                for j in range(i - 1):
+                    re, im = g[i - 1, j], g[j, i - 1]
+                    g[i, j] = re * step_re - im * step_im
+                    g[j, i] = re * step_im + im * step_re
+        else:
+            for j in range(i):
+                u = max(abs(x[i] - x[j]) - half, 0.0)
+                decay = math.exp(-beta * u)
+                g[i, j], g[j, i] = decay * math.cos(beta * u), decay * math.sin(beta * u)
+    for i in range(count):
         for j in range(i):
             r = abs(x[i] - x[j])
             if r < half:
                 value = gain * patch_bracket(r, beta, half)
             else:
-                u = r - half
-                decay = math.exp(-beta * u)
-                value = decay * (math.cos(beta * u) * outside.real -
-                                 math.sin(beta * u) * outside.imag)
+                value = g[i, j] * c_re - g[j, i] * c_im
             g[i, j] = value
             g[j, i] = value
 
 
 @numba.njit(cache=CACHE)
+def fill_compliance(x: np.ndarray, count: int, beta: float, half: float, gain: float,
+                    g: np.ndarray) -> None:
+    """Fill g[:count, :count] (m/N) for tips at x[:count] in any order (``fill_wall``)."""
+    itself, c_re, c_im = patch_constants(beta, half, gain)
+    fill_wall(x, count, beta, half, gain, itself, c_re, c_im, g)
+
+
+@numba.njit(cache=CACHE)
 def solve_in_place(a: np.ndarray, b: np.ndarray, count: int) -> None:
-    """Solve a[:count, :count] y = b[:count] by Gaussian elimination (partial pivoting); y in b."""
+    """
+    Solve a[:count, :count] y = b[:count] by Gaussian elimination (partial pivoting); y in b.
+
+    ``a`` is left holding its elimination, with each pivot's reciprocal on the diagonal.
+    """
     for k in range(count):
         pivot = k
         for i in range(k + 1, count):
@@ -160,8 +218,10 @@ def solve_in_place(a: np.ndarray, b: np.ndarray, count: int) -> None:
             for j in range(k, count):
                 a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
             b[k], b[pivot] = b[pivot], b[k]
+        inverse = 1.0 / a[k, k]
+        a[k, k] = inverse
         for i in range(k + 1, count):
-            f = a[i, k] / a[k, k]
+            f = a[i, k] * inverse
             if f != 0.0:
                 for j in range(k + 1, count):
                     a[i, j] -= f * a[k, j]
@@ -170,7 +230,7 @@ def solve_in_place(a: np.ndarray, b: np.ndarray, count: int) -> None:
         total = b[k]
         for j in range(k + 1, count):
             total -= a[k, j] * b[j]
-        b[k] = total / a[k, k]
+        b[k] = total * a[k, k]
 
 
 @numba.njit(cache=CACHE)
@@ -183,26 +243,27 @@ def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.nda
     ``depth`` the tips' depths into the rigid wall, ``w`` the first guess (solved in place),
     ``g`` the compliance, ``before`` the law's last depths, ``law`` its folded constants
     (core.contact's LAW_FIELDS), ``scale`` the convergence test's scale (p times twice a tip's
-    own compliance). Leaves the forces in ``force``; returns (iterations, converged).
+    own compliance), ``work`` rows 0-2 a scratch. Leaves the forces in ``force``; returns
+    (iterations, converged).
     """
     mean, half, rate, p = law[KN_MEAN], law[KN_HALF], law[KN_RATE], law[EXPONENT]
     band = half / rate
-    factor, root, slope, step = work[0], work[1], work[2], work[3]
-    loading, touching = work[4], work[5]
+    slope, step, curvature = work[0], work[1], work[2]
     converged = False
     iteration = 0
     for iteration in range(MAX_NEWTON):
         for i in range(count):
-            delta = max(depth[i] - w[i], 0.0)
-            touching[i] = delta
             # The normal law of core.contact at this depth, hysteresis factor included:
             # F = (k_mean + clip((delta - before) rate, -k_half, k_half)) delta^p.
+            delta = max(depth[i] - w[i], 0.0)
             change = (delta - before[i]) * rate
-            factor[i] = max(min(change, half), -half) + mean
-            root[i] = math.sqrt(delta) if p == 1.5 else delta ** (p - 1.0)
-            force[i] = factor[i] * (root[i] * delta)
-            loading[i] = rate if abs(change) < half else 0.0     # the band's rate term
-            slope[i] = factor[i] * root[i] * p + loading[i] * (root[i] * delta)
+            factor = max(min(change, half), -half) + mean
+            root = math.sqrt(delta) if p == 1.5 else delta ** (p - 1.0)
+            loading = rate if abs(change) < half else 0.0     # the band's rate term
+            force[i] = factor * (root * delta)
+            slope[i] = factor * root * p + loading * (root * delta)
+            # F'' / root, for the convergence test below.
+            curvature[i] = ((p - 1.0) * factor / max(delta, 1e-300) + 2.0 * loading) * root
         # residual = w - G F; d residual / d w = I + G diag(slope)  (delta = d - w).
         for i in range(count):
             carried = 0.0
@@ -218,10 +279,9 @@ def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.nda
         # so this cannot cycle.
         fraction = 1.0
         for i in range(count):
-            ahead = depth[i] - w[i]
-            for kink in (before[i] - band, before[i] + band, 0.0):
-                a = ahead - kink
-                b = a + step[i]
+            ahead, change = depth[i] - w[i], step[i]
+            for a in (ahead - before[i] + band, ahead - before[i] - band, ahead):
+                b = a + change
                 if a * b < 0.0:
                     fraction = min(fraction, a / (a - b))
         if fraction < 1.0:
@@ -232,8 +292,7 @@ def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.nda
         left = 0.0
         for i in range(count):
             w[i] -= fraction * step[i]
-            curvature = (p - 1.0) * factor[i] / max(touching[i], 1e-300) + 2.0 * loading[i]
-            left = max(left, curvature * root[i] * step[i] * step[i] * scale)
+            left = max(left, curvature[i] * step[i] * step[i] * scale)
         if left < tolerance and fraction == 1.0:
             converged = True
             break
@@ -270,60 +329,56 @@ def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.n
     deflection. Only the tips that can touch are solved for: those deeper than
     CANDIDATE_MARGIN of the last step's largest deflection below the rigid surface (a wall
     rises towards a tip by at most exp(-3 pi / 4) sin(3 pi / 4) = 7 % of the deflection
-    beside it, Hetenyi), the same number K on both walls (the deepest); the others load
-    nothing and read the shape. First guess: the last two steps' deflections extrapolated.
-    ``walls``: the scenario's WALL_FIELDS, ``state`` (WALL_ROWS, 2, n), ``work`` a scratch
+    beside it, Hetenyi), in their order along the wall; the others load nothing and read the
+    shape. First guess: the last two steps' deflections extrapolated. ``walls``: the
+    scenario's WALL_FIELDS, ``state`` (WALL_ROWS, 2, n), ``work`` a scratch
     (WORK_ROWS + 2 n, n) array.
     """
     n = state.shape[2]
     reach = walls[REACH]
-    count = 0
-    for wall in range(2):
-        inside = 0
-        for i in range(n):
-            if tips[PENETRATION, wall * n + i] > reach:
-                inside += 1
-        count = max(count, inside)
-    walls[SOLVED_COUNT] = count
     largest = -np.inf
     most = 0
     all_converged = True
     x, depth, before, w, force = work[6], work[7], work[8], work[9], work[10]
     g, jacobian = work[WORK_ROWS:WORK_ROWS + n], work[WORK_ROWS + n:]
     for wall in range(2):
-        last, prior = state[SOLVED, wall], state[SOLVED_BEFORE, wall]
-        state[LOADS, wall] = 0.0
+        first = wall * n
+        count = 0
+        for i in range(n):
+            # The last step's solution becomes this step's "before"; this step's starts
+            # empty. The last two steps' deflections extrapolated are the first guess (a tip
+            # not solved for before starts from 0 and settles in the first Newton step).
+            last = state[SOLVED, wall, i]
+            guess = 2.0 * last - state[SOLVED_BEFORE, wall, i]
+            state[SOLVED_BEFORE, wall, i] = last
+            state[SOLVED, wall, i] = 0.0
+            state[LOADS, wall, i] = 0.0
+            # Written in any case, kept where the tip can touch (no branch to mispredict).
+            p = first + i
+            state[CHOSEN, wall, count] = i
+            x[count], depth[count], before[count] = tips[X, p], tips[PENETRATION, p], \
+                tips[DEPTH, p]
+            w[count] = guess
+            count += tips[PENETRATION, p] > reach
+        walls[SOLVED_COUNT + wall] = count
         if count == 0:
-            prior[:] = last
-            last[:] = 0.0
             continue
-        chosen = state[CHOSEN, wall]
-        deepest(tips[PENETRATION, wall * n:(wall + 1) * n], count, chosen)
-        for k in range(count):
-            i = int(chosen[k])
-            x[k], depth[k], before[k] = tips[X, wall * n + i], tips[PENETRATION, wall * n + i], \
-                tips[DEPTH, wall * n + i]
-            # The last two steps' deflections extrapolated (a tip not solved for before starts
-            # from 0 and settles in the first Newton step).
-            w[k] = 2.0 * last[i] - prior[i]
-        # The last step's solution becomes this step's "before"; this step's starts empty.
-        prior[:] = last
-        last[:] = 0.0
-        fill_compliance(x, count, walls[BETA], walls[HALF], walls[GAIN], g)
+        fill_wall(x, count, walls[BETA], walls[HALF], walls[GAIN], walls[ITSELF],
+                  walls[PATCH_RE], walls[PATCH_IM], g)
         scale = law[EXPONENT] * 2.0 * g[0, 0]
         iterations, converged = balance_wall(depth, w, g, before, count, law, scale,
                                              walls[TOLERANCE_COLUMN], work, jacobian, force)
         most = max(most, iterations)
         all_converged = all_converged and converged
         for k in range(count):
-            i = int(chosen[k])
-            if prior[i] == 0.0:
-                prior[i] = w[k]        # a tip solved for the first time: no trend
-            last[i] = w[k]
+            i = int(state[CHOSEN, wall, k])
+            if state[SOLVED_BEFORE, wall, i] == 0.0:
+                state[SOLVED_BEFORE, wall, i] = w[k]    # a tip solved for the first time
+            state[SOLVED, wall, i] = w[k]
             state[LOADS, wall, i] = force[k]
-            tips[SEEN, wall * n + i] = depth[k] - w[k]
+            tips[SEEN, first + i] = depth[k] - w[k]
             largest = max(largest, w[k])
-    if count == 0:
+    if largest == -np.inf:
         walls[LARGEST] = 0.0
         walls[REACH] = -MIN_MARGIN
         return
@@ -365,6 +420,8 @@ class Walls:
         self.constants[:, HALF] = self.half
         self.constants[:, GAIN] = self.gain
         self.constants[:, TOLERANCE_COLUMN] = TOLERANCE
+        for row in self.constants:
+            row[ITSELF:PATCH_IM + 1] = patch_constants(row[BETA], row[HALF], row[GAIN])
         self.state = np.zeros((count, WALL_ROWS, 2, n))
         self.largest = self.constants[:, LARGEST]           # the largest deflection, m
         # The tips' abscissae (S, P), m: the simulator's, to draw the shape from the loads.
@@ -387,14 +444,15 @@ class Walls:
         return self.state[:, LOADS].copy()
 
     @property
-    def solved_tips(self) -> np.ndarray:
-        """Return the flat (S P) indices of the tips the last step solved for, (S, 2, K)."""
-        counts = self.constants[:, SOLVED_COUNT].astype(int)
-        if (counts != counts[0]).any():
-            raise ValueError('the scenarios solved for different numbers of tips')
-        chosen = self.state[:, CHOSEN, :, :counts[0]].astype(int)
-        rows = (np.arange(2 * len(counts)) * self.n).reshape(-1, 2, 1)
-        return chosen + rows
+    def solved_tips(self) -> List[np.ndarray]:
+        """Return the flat (S P) indices of the tips the last step solved for, per wall (2 S)."""
+        found = []
+        for s in range(len(self.beta)):
+            for wall in range(2):
+                count = int(self.constants[s, SOLVED_COUNT + wall])
+                chosen = self.state[s, CHOSEN, wall, :count].astype(int)
+                found.append(chosen + (2 * s + wall) * self.n)
+        return found
 
     @property
     def shape_by_surface(self) -> np.ndarray:

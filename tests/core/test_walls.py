@@ -72,6 +72,34 @@ def test_compliance_is_superposition_and_symmetric():
     assert np.all(np.linalg.eigvalsh(g[0, 0]) > 0.0)          # elastic: energy stored > 0
 
 
+def test_the_compliance_is_one_matrix_whatever_the_order_of_the_tips():
+    """Tips in their order along a wall (a decay per gap) or not (a decay per pair): one G."""
+    walls = Walls([SHEET], Simulator(SHEET).table.side)
+    rng = np.random.default_rng(3)
+    along = np.sort(rng.uniform(-0.1, 0.1, 8))
+    along[3] = along[2] + 0.001                             # two tips under one patch
+    exact = deflection(along[:, None] - along[None, :], 1.0, K, EI, B)
+    for order in (np.arange(8), np.arange(8)[::-1], rng.permutation(8)):
+        g = walls.compliance(along[order][None, None, :])[0, 0]
+        np.testing.assert_allclose(g, exact[np.ix_(order, order)], rtol=0.0,
+                                   atol=1e-12 * exact.max())
+
+
+def test_a_patch_far_wider_than_the_decay_length_keeps_its_compliance_finite():
+    # beta b/2 near 1000: exp(beta b/2) overflows, the pairs are taken one by one.
+    wide = Scenario().with_values({'surface.foundation_stiffness': 1e10,
+                                   'surface.bending_stiffness': 1e-9,
+                                   'surface.contact_width': 0.05})
+    s = wide.surface
+    walls = Walls([wide], Simulator(wide).table.side)
+    along = np.array([0.0, 0.01, 0.0249, 0.0251, 0.06])
+    g = walls.compliance(along[None, None, :])[0, 0]
+    exact = deflection(along[:, None] - along[None, :], 1.0, s.foundation_stiffness,
+                       s.bending_stiffness, s.contact_width)
+    assert np.isfinite(g).all()
+    np.testing.assert_allclose(g, exact, rtol=0.0, atol=1e-12 * exact.max())
+
+
 def test_a_foundation_alone_is_a_spring_of_k_times_the_contact_width():
     tiny = 1e-12
     w0 = deflection(0.0, 1.0, K, tiny, B)
@@ -111,10 +139,10 @@ def test_the_coupled_step_balances_the_walls_with_the_contact_law(walls):
     worst = 0.0
     for _ in range(1500):
         sim.step()
-        solved = sim.walls.solved_tips                       # the tips each step solved for
-        g = sim.walls.compliance(sim._x.ravel()[solved])
-        carried = (g @ sim.contacts.normal.ravel()[solved][..., None])[..., 0]
-        worst = max(worst, np.abs(carried - sim.walls.solved.ravel()[solved]).max())
+        x, loads, solved = sim._x.ravel(), sim.contacts.normal.ravel(), sim.walls.solved.ravel()
+        for tips in sim.walls.solved_tips:                  # those each wall solved for
+            g = sim.walls.compliance(x[tips][None, None, :])[0, 0]
+            worst = max(worst, np.abs(g @ loads[tips] - solved[tips]).max(initial=0.0))
     assert worst < TOLERANCE                                # m, against mm deflections
     assert sim.walls.unconverged == 0
     assert sim.walls.deflection.max() > 5e-4                # the walls did bend
