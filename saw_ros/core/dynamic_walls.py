@@ -30,11 +30,15 @@ relaxes towards it: a Kelvin-Voigt foundation). The modes beyond the band's last
 keep their quasi-static share (the closed form holds all of it), so the truncation costs only
 the dynamic correction of wavenumbers far beyond the foundation's beta = (k / 4 EI)^(1/4).
 
-Coupling (used when the step is coupled): the deflection at the tips after the step is linear
-in the step-end loads, w = free + G F, G = G_quasi_static - H, H_ij = sum_n h_n weight_n sinc_n
-cos(kappa_n (x_i - x_j)) (h_n what a unit step-end load takes from mode n's correction,
-``DynamicWall.compliance``), so the same Newton solve as core.walls balances it with the
-contact law.
+Coupling into the simulator's step (``DynamicWalls``, ``swing_walls``, ``load_walls``): the
+loads between two steps are not known there, so each mode takes its step-end load held over the
+step (implicit in it, stable against any contact; the ramp above is for loads known in
+advance). The deflection at the tips after the step is then linear in the step-end loads,
+w = free + G F, G = G_quasi_static - H, H_ij = sum_n Phi00_n weight_n sinc_n / K_n
+cos(kappa_n (x_i - x_j)), so the same Newton solve as core.walls balances it with the contact
+law. Only the modes the step resolves are dynamic (``resolved_modes``); the others follow
+their loads, which makes a wall too light for the step the quasi-static wall exactly.
+``DynamicWall.free_deflection`` and ``compliance`` are the same map for the ramp.
 
 Kernels: numba-compiled loops over plain arrays into preallocated outputs (the compiled core's
 style); the class holds the state and the constants.
@@ -42,14 +46,20 @@ style); the class holds the state and the constants.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, cast, Tuple, TypeVar
+from typing import Any, Callable, cast, Sequence, Tuple, TypeVar
 
 import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from saw_ros.core.params import SurfaceParams, WallDynamicsParams
+from saw_ros.core.contact import DEPTH, EXPONENT, NORMAL, PENETRATION, SEEN, X
+from saw_ros.core.jit import CACHE
+from saw_ros.core.params import Scenario, SurfaceParams, WallDynamicsParams
+from saw_ros.core.walls import balance_wall, BETA, CHOSEN, deepest, fill_compliance, GAIN, HALF
+from saw_ros.core.walls import CANDIDATE_MARGIN, ITERATIONS, LARGEST, LOADS, MIN_MARGIN, REACH
 from saw_ros.core.walls import deflection as quasi_static_deflection
+from saw_ros.core.walls import SOLVED, SOLVED_BEFORE, SOLVED_COUNT, TOLERANCE_COLUMN
+from saw_ros.core.walls import UNCONVERGED, Walls, WORK_ROWS
 
 # The band: a periodic wall 2 m long, far longer than the decay length 1 / beta (about 1 cm for
 # the walls of docs/walls.md) and than the robot (0.35 m): its images are 2 m away. 512 modes
@@ -62,8 +72,8 @@ Function = TypeVar('Function', bound=Callable[..., Any])
 
 
 def compiled(function: Function) -> Function:
-    """Return ``function`` compiled by numba (nopython, cached on disk), typed for mypy."""
-    return cast(Function, numba.njit(cache=True)(function))
+    """Return ``function`` compiled by numba (nopython, cached on disk: core.jit), typed."""
+    return cast(Function, numba.njit(cache=CACHE)(function))
 
 
 @compiled
@@ -233,7 +243,7 @@ class DynamicWall:
         # What a newton of step-end load at a tip takes from each mode's correction z - g/K
         # after the step, m/N (compliance): the ramp's -c g'/K^2 and its homogeneous rest.
         k, p = self.stiffness, self.phi
-        self._held_gain = (damping * (1.0 - p[0]) / (k * dt) + p[1] / dt) / k * self.shape
+        self.held_gain = (damping * (1.0 - p[0]) / (k * dt) + p[1] / dt) / k * self.shape
         self.z_re, self.z_im = np.zeros(modes), np.zeros(modes)      # m
         self.v_re, self.v_im = np.zeros(modes), np.zeros(modes)      # m/s
         self.g_re, self.g_im = np.zeros(modes), np.zeros(modes)      # step-end loads, N/m
@@ -325,7 +335,7 @@ class DynamicWall:
         r = x[:, None] - x[None, :]
         g = quasi_static_deflection(r, 1.0, self.foundation, self.bending, self.width)
         held = np.empty((x.size, x.size))
-        _held_compliance(x, self.kappa1, self._held_gain, held)
+        _held_compliance(x, self.kappa1, self.held_gain, held)
         return g - held
 
 
@@ -367,3 +377,343 @@ def moving_load_deflection(xi: ArrayLike, load: float, speed: float, foundation:
     for amplitude, s in zip(amplitudes[2:], behind):
         out[~front] += amplitude * np.exp(s * xi[~front])
     return out.real
+
+
+# -- in the compiled step: each bending wall of a scenario a dynamic wall ---------------------
+# In the step the tips' loads are not known between the steps' ends: each mode is stepped
+# exactly under its step-end load held over the step (z <- g/K + Phi (z - g/K, z')), implicit in
+# that load like the quasi-static solve. The ramp of DynamicWall.step (second order for a load
+# known in advance) set light walls ringing against the stiff contact: its amplification
+# reached 3.7 per step (m 0.018 kg/m undamped, K 1e3 N/m^2, contact 1e8 N/m^2; 1.05 for the
+# tissue's foundation at 1e-3 kg/m), and the held load stays within 1 over m 1e-6 to 100 kg/m,
+# damping ratios 0 to 10, K 1e3 to 1e8 and contacts 10 to 1e8 at dt 1 ms (docs/walls.md). It is
+# first order in dt, as the body's semi-implicit Euler is. Held loads ring a mode the step
+# cannot resolve (a staircase load excites it by the load's change over K each step, forever
+# without damping): only the modes whose slowest rate the step resolves (rate dt <= RESOLVED,
+# ``resolved_modes``) are dynamic, the faster ones follow their loads at once, as they do in the
+# physical wall under the robot's smooth loads. So a wall light enough (all its modes too fast)
+# is the quasi-static wall exactly: the massless limit.
+RESOLVED = 1.0
+# Rows of a scenario's modes (DynamicWalls.modes[s], (TABLE + 4 n, modes), n tips a wall): each
+# mode's K_n (N/m^2), its load shape weight_n sinc_n (1/m), its exact step Phi (4 rows), what a
+# newton of step-end load takes from its correction (Phi00 shape / K, m/N); the settings row (1
+# where the walls are dynamic, kappa1 1/m, and the step's bound on each wall's free correction,
+# m); per wall (bottom, top) the modes' z and z' (m, m/s) and step-end loads g (N/m), real and
+# imaginary parts; then scratch: the free correction's modes, and cos (kappa_m x_p) and
+# sin (kappa_m x_p) of the 2 n tips.
+STIFFNESS, SHAPE, PHI, HELD = 0, 1, 2, 6
+SETTINGS = 7
+ON, KAPPA1, BOUND = range(3)
+WALL_STATE = 8
+Z_RE, Z_IM, V_RE, V_IM, G_RE, G_IM = range(6)
+STATE_ROWS = 6
+FREE_RE = WALL_STATE + 2 * STATE_ROWS
+FREE_IM = FREE_RE + 1
+TABLE = FREE_IM + 1
+
+
+@compiled
+def _free_modes(modes: np.ndarray, base: int) -> float:
+    """
+    Set FREE_RE, FREE_IM to a wall's modes after a step under no load: Phi applied to them.
+
+    ``base`` the wall's first state row. The correction those modes make is what the wall does
+    by itself over the step (the step-end load's share, -Phi00 g / K, comes with the solve).
+    Returns the sum of |Re| + |Im| over them: a bound on that correction anywhere (m).
+    """
+    bound = 0.0
+    for m in range(modes.shape[1]):
+        for part in range(2):
+            z = modes[PHI, m] * modes[base + Z_RE + part, m] + \
+                modes[PHI + 1, m] * modes[base + V_RE + part, m]
+            modes[FREE_RE + part, m] = z
+            bound += abs(z)
+    return bound
+
+
+@compiled
+def _tip_table(modes: np.ndarray, p: int, x: float) -> None:
+    """Fill the scratch rows of tip p with cos (kappa_m x) and sin (kappa_m x) of every mode."""
+    tips = (modes.shape[0] - TABLE) // 2
+    kappa1 = modes[SETTINGS, KAPPA1]
+    c1, s1 = math.cos(kappa1 * x), math.sin(kappa1 * x)
+    c, s = 1.0, 0.0
+    for m in range(modes.shape[1]):
+        modes[TABLE + p, m] = c
+        modes[TABLE + tips + p, m] = s
+        c, s = c * c1 - s * s1, s * c1 + c * s1
+
+
+@compiled
+def _free_at(modes: np.ndarray, p: int) -> float:
+    """Return the free correction (FREE_RE, FREE_IM) at tabled tip p, m."""
+    tabled = (modes.shape[0] - TABLE) // 2
+    total = 0.0
+    for m in range(modes.shape[1]):
+        total += modes[FREE_RE, m] * modes[TABLE + p, m] - \
+            modes[FREE_IM, m] * modes[TABLE + tabled + p, m]
+    return total
+
+
+@compiled
+def load_walls(walls: np.ndarray, state: np.ndarray, modes: np.ndarray, tips: np.ndarray) -> None:
+    """
+    Advance a scenario's dynamic walls over the step under the loads the law put on the tips.
+
+    After ``swing_walls`` and the contact law (core.contact.press_tips): each wall takes the
+    NORMAL force of the tips it solved for (the very forces the body gets, so that the step
+    keeps action and reaction), held over the step: each mode z <- g/K + Phi (z - g/K, z').
+    The forces go to the walls' LOADS (state), for their shape.
+    """
+    n = state.shape[2]
+    count = int(walls[SOLVED_COUNT])
+    tabled = (modes.shape[0] - TABLE) // 2
+    for wall in range(2):
+        base = WALL_STATE + wall * STATE_ROWS
+        chosen, loads = state[CHOSEN, wall], state[LOADS, wall]
+        for k in range(count):
+            i = int(chosen[k])
+            loads[i] = tips[NORMAL, wall * n + i]
+        for m in range(modes.shape[1]):
+            k_m = modes[STIFFNESS, m]
+            g_re = g_im = 0.0
+            for j in range(count):
+                i = int(chosen[j])
+                p = wall * n + i
+                g_re += loads[i] * modes[TABLE + p, m]
+                g_im -= loads[i] * modes[TABLE + tabled + p, m]
+            g_re *= modes[SHAPE, m]
+            g_im *= modes[SHAPE, m]
+            for part in range(2):
+                g = g_re if part == 0 else g_im
+                u = modes[base + Z_RE + part, m] - g / k_m
+                v = modes[base + V_RE + part, m]
+                modes[base + Z_RE + part, m] = g / k_m + modes[PHI, m] * u + \
+                    modes[PHI + 1, m] * v
+                modes[base + V_RE + part, m] = modes[PHI + 2, m] * u + modes[PHI + 3, m] * v
+                modes[base + G_RE + part, m] = g
+
+
+@compiled
+def swing_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np.ndarray,
+                tips: np.ndarray, work: np.ndarray) -> None:
+    """
+    Solve one scenario's two dynamic walls against its tips' contact law (compiled kernel).
+
+    core.walls.bend_walls with each wall w = free + (G_quasi_static - H) F (module docstring):
+    the modes' free correction moves the surface the tips press into (SEEN = PENETRATION -
+    free, for every tip it can bring within reach), and the same Newton solve
+    (``balance_wall``) balances the rest with the contact law; ``load_walls`` then steps the
+    modes under the law's forces. The candidates are chosen on SEEN, so that a wall swinging
+    towards a tip meets it; a tip further from its wall than the bound of the free correction
+    is not tabled. ``modes`` the scenario's rows (TABLE + 4 n, modes); ``walls``, ``state``,
+    ``work`` as bend_walls'.
+    """
+    n = state.shape[2]
+    count_modes = modes.shape[1]
+    reach = walls[REACH]
+    count = 0
+    for wall in range(2):
+        bound = _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
+        modes[SETTINGS, BOUND + wall] = bound
+        inside = 0
+        for i in range(n):
+            p = wall * n + i
+            if tips[PENETRATION, p] + bound <= reach:
+                continue
+            _tip_table(modes, p, tips[X, p])
+            tips[SEEN, p] = tips[PENETRATION, p] - _free_at(modes, p)
+            if tips[SEEN, p] > reach:
+                inside += 1
+        count = max(count, inside)
+    walls[SOLVED_COUNT] = count
+    largest = -np.inf
+    most = 0
+    all_converged = True
+    x, depth, before, w, force = work[6], work[7], work[8], work[9], work[10]
+    g, jacobian = work[WORK_ROWS:WORK_ROWS + n], work[WORK_ROWS + n:]
+    for wall in range(2):
+        last, prior = state[SOLVED, wall], state[SOLVED_BEFORE, wall]
+        chosen = state[CHOSEN, wall]
+        state[LOADS, wall] = 0.0
+        first = wall * n
+        if count == 0:
+            prior[:] = last
+            last[:] = 0.0
+            continue
+        deepest(tips[SEEN, first:first + n], count, chosen)
+        refreshed = False
+        for k in range(count):
+            i = int(chosen[k])
+            p = first + i
+            if tips[PENETRATION, p] + modes[SETTINGS, BOUND + wall] <= reach:
+                # A tip out of reach, to make up the count: its free correction too.
+                if not refreshed:
+                    _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
+                    refreshed = True
+                _tip_table(modes, p, tips[X, p])
+                tips[SEEN, p] = tips[PENETRATION, p] - _free_at(modes, p)
+            x[k], depth[k], before[k] = tips[X, p], tips[SEEN, p], tips[DEPTH, p]
+            # The solve is for what the loads add to the free correction (the depth is less
+            # it too): the last two steps' deflections extrapolated, less it.
+            w[k] = 2.0 * last[i] - prior[i] - (tips[PENETRATION, p] - tips[SEEN, p])
+        prior[:] = last
+        last[:] = 0.0
+        fill_compliance(x, count, walls[BETA], walls[HALF], walls[GAIN], g)
+        # Less what the held loads' modes take back: H = sum_m held_m (C_i C_j + S_i S_j).
+        for a in range(count):
+            pa = first + int(chosen[a])
+            for b in range(a + 1):
+                pb = first + int(chosen[b])
+                total = 0.0
+                for m in range(count_modes):
+                    total += modes[HELD, m] * (
+                        modes[TABLE + pa, m] * modes[TABLE + pb, m] +
+                        modes[TABLE + 2 * n + pa, m] * modes[TABLE + 2 * n + pb, m])
+                g[a, b] -= total
+                if b != a:
+                    g[b, a] -= total
+        # The convergence test's scale: p times the largest row sum of |G| (twice the own
+        # compliance in bend_walls, which bounds the quasi-static rows; less the modes' share
+        # the neighbours' entries may outweigh the tip's own).
+        scale = 0.0
+        for a in range(count):
+            row = 0.0
+            for b in range(count):
+                row += abs(g[a, b])
+            scale = max(scale, row)
+        scale *= law[EXPONENT]
+        iterations, converged = balance_wall(depth, w, g, before, count, law, scale,
+                                             walls[TOLERANCE_COLUMN], work, jacobian, force)
+        most = max(most, iterations)
+        all_converged = all_converged and converged
+        for k in range(count):
+            i = int(chosen[k])
+            p = first + i
+            total = w[k] + tips[PENETRATION, p] - depth[k]     # the loads' share + the free
+            if prior[i] == 0.0:
+                prior[i] = total        # a tip solved for the first time: no trend
+            last[i] = total
+            tips[SEEN, p] = depth[k] - w[k]
+            largest = max(largest, total)
+    if count == 0:
+        walls[LARGEST] = 0.0
+        walls[REACH] = -MIN_MARGIN
+        return
+    walls[ITERATIONS] += most
+    if not all_converged:
+        walls[UNCONVERGED] += 1.0
+    walls[LARGEST] = largest
+    walls[REACH] = largest * -CANDIDATE_MARGIN - MIN_MARGIN
+
+
+@compiled
+def _correction_at(modes: np.ndarray, base: int, x: np.ndarray, out: np.ndarray) -> None:
+    """Add to out_i the correction of the wall at ``base``: Re sum (z_m - g_m / K_m) e^(i k x)."""
+    kappa1 = modes[SETTINGS, KAPPA1]
+    for i in range(x.size):
+        c1, s1 = math.cos(kappa1 * x[i]), math.sin(kappa1 * x[i])
+        c, s = 1.0, 0.0
+        total = 0.0
+        for m in range(modes.shape[1]):
+            k = modes[STIFFNESS, m]
+            total += (modes[base + Z_RE, m] - modes[base + G_RE, m] / k) * c - \
+                (modes[base + Z_IM, m] - modes[base + G_IM, m] / k) * s
+            c, s = c * c1 - s * s1, s * c1 + c * s1
+        out[i] += total
+
+
+def dynamic(scenario: Scenario) -> bool:
+    """Say whether ``scenario``'s walls bend with mass or damping (a DynamicWalls step)."""
+    return scenario.surface.foundation_stiffness > 0.0 and (
+        scenario.walls.mass > 0.0 or scenario.walls.damping > 0.0)
+
+
+def slowest_rate(stiffness: np.ndarray, mass: float, damping: float) -> np.ndarray:
+    """
+    Return each mode's slowest rate, 1/s: the smallest |eigenvalue| of m z'' + c z' + K z = 0.
+
+    sqrt(K/m) when it oscillates, the slow decay c/2m - sqrt((c/2m)^2 - K/m) when overdamped,
+    K/c without mass, infinite without mass and damping (it follows its load at once).
+    """
+    k = np.asarray(stiffness, float)
+    if mass == 0.0:
+        return k / damping if damping > 0.0 else np.full(k.shape, np.inf)
+    mean = damping / (2.0 * mass)
+    split = mean * mean - k / mass
+    with np.errstate(divide='ignore', invalid='ignore'):
+        overdamped = k / (mean + np.sqrt(np.maximum(split, 0.0)))   # = mean - sqrt(split)
+    return np.where(split < 0.0, np.sqrt(k / mass), overdamped)
+
+
+def resolved_modes(surface: SurfaceParams, walls: WallDynamicsParams, dt: float,
+                   length: float = BAND_LENGTH, limit: int = BAND_MODES) -> int:
+    """
+    Return how many of the band's modes the step resolves: slowest rate dt <= RESOLVED.
+
+    K_n grows with n, so they are the first ones (at most ``limit``).
+    """
+    kappa = 2.0 * math.pi / length * np.arange(limit)
+    k = surface.bending_stiffness * kappa ** 4 + surface.foundation_stiffness
+    return int(np.count_nonzero(slowest_rate(k, walls.mass, walls.damping) * dt <= RESOLVED))
+
+
+class DynamicWalls(Walls):
+    """
+    The bending walls of S scenarios, where any has walls.mass or walls.damping > 0.
+
+    core.walls.Walls (its constants and state, ``bend_walls``'s) plus each scenario's
+    ``modes`` (S, TABLE + 4 n, modes), what ``swing_walls`` solves and advances: every bending
+    wall of the batch, its modes the step resolves dynamic (``resolved_modes``), the others at
+    rest on their loads (Phi 0: a quasi-static wall has none, and its numbers are the
+    quasi-static step's to 1e-14 m).
+    """
+
+    def __init__(self, scenarios: Sequence[Scenario], side: np.ndarray, dt: float):
+        n = len(side) // 2
+        self.resolved = np.array([resolved_modes(s.surface, s.walls, dt)
+                                  if s.surface.foundation_stiffness > 0.0 else 0
+                                  for s in scenarios])
+        # (at least the settings row's columns)
+        columns = max(int(self.resolved.max()), BOUND + 2)
+        self.modes = np.zeros((len(scenarios), TABLE + 4 * n, columns))
+        self.modes[:, STIFFNESS] = 1.0              # harmless where the walls are rigid
+        super().__init__(scenarios, side)
+        for s, scenario in enumerate(scenarios):
+            if scenario.surface.foundation_stiffness <= 0.0:
+                continue
+            surface, walls = scenario.surface, scenario.walls
+            wall = DynamicWall(surface.foundation_stiffness, surface.bending_stiffness,
+                               surface.contact_width, walls.mass, walls.damping, dt,
+                               modes=self.modes.shape[2])
+            rows = self.modes[s]
+            rows[STIFFNESS], rows[SHAPE], rows[PHI:PHI + 4] = wall.stiffness, wall.shape, wall.phi
+            rows[PHI:PHI + 4, self.resolved[s]:] = 0.0
+            rows[HELD] = rows[PHI] * wall.shape / wall.stiffness
+            rows[SETTINGS, :BOUND] = 1.0, wall.kappa1
+        self.dynamic = self.modes[:, SETTINGS, ON] > 0.0
+
+    def reset(self) -> None:
+        super().reset()
+        self.modes[:, WALL_STATE:] = 0.0
+
+    @property
+    def shape_by_surface(self) -> np.ndarray:
+        """Return the deflection at each tip (S, 2, n), m, > 0 away: bottom tips, then top."""
+        quasi_static = super().shape_by_surface
+        x = self._by_surface(self.tip_x)
+        for s in np.flatnonzero(self.dynamic):
+            for wall in range(2):
+                _correction_at(self.modes[s], WALL_STATE + wall * STATE_ROWS,
+                               np.ascontiguousarray(x[s, wall]), quasi_static[s, wall])
+        return quasi_static
+
+    def shape(self, x_tips: np.ndarray, samples: np.ndarray) -> np.ndarray:
+        """Return each wall's deflection (S, 2, m) at ``samples`` (m): quasi-static + modes."""
+        out = super().shape(x_tips, samples)
+        samples = np.ascontiguousarray(samples, dtype=float)
+        for s in np.flatnonzero(self.dynamic):
+            for wall in range(2):
+                _correction_at(self.modes[s], WALL_STATE + wall * STATE_ROWS, samples,
+                               out[s, wall])
+        return out

@@ -33,6 +33,8 @@ from saw_ros.core import stability
 from saw_ros.core.contact import ContactLaw, ContactState, NORMAL, OFFSET_X, OFFSET_Y, Param
 from saw_ros.core.contact import PENETRATION, press_tips, SEEN, TANGENTIAL, X
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
+from saw_ros.core.dynamic_walls import dynamic, DynamicWalls, load_walls, ON, SETTINGS
+from saw_ros.core.dynamic_walls import swing_walls, TABLE
 from saw_ros.core.flexure import flex_advance, flex_links, FLEX_ON, flex_restore, FLEX_ROWS
 from saw_ros.core.flexure import flexure_constants
 from saw_ros.core.jit import CACHE
@@ -162,11 +164,15 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
                      side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                      harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
                      motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-                     wall_state: np.ndarray, flex: np.ndarray, flex_state: np.ndarray,
-                     body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
-                     trace_tips: np.ndarray) -> None:
+                     wall_state: np.ndarray, wall_modes: np.ndarray, flex: np.ndarray,
+                     flex_state: np.ndarray, body: np.ndarray, tips: np.ndarray,
+                     trace: np.ndarray, trace_tips: np.ndarray) -> None:
     """
     Advance scenario ``s`` by ``steps`` steps: tips, walls, contact law, body, helix (kernel).
+
+    Walls with mass or damping (core.dynamic_walls, ``wall_modes[s]`` on) are solved by
+    ``swing_walls`` and stepped under the law's forces by ``load_walls``, quasi-static ones
+    solved by ``bend_walls``.
 
     With link flexures (core.flexure, ``flex[s]`` on): the links' deflections enter the depths
     the law sees, and the body gets the flexures' reactions.
@@ -178,6 +184,7 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
     """
     b, c, t, wc = body[s], constants[s], tips[s], walls[s]
     bending = wc[ACTIVE] > 0.0
+    swinging = bending and wall_modes[s, SETTINGS, ON] > 0.0
     fc, fs = flex[s], flex_state[s]
     flexing = fc[FLEX_ON] > 0.0
     n = tips.shape[2] // 2
@@ -185,11 +192,15 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
     b[STATUS] = 0.0
     for k in range(1, steps + 1):
         place_tips(table, scale, side, b, b[PHASE], c[GAP], t)
-        if bending:
+        if swinging:
+            swing_walls(law[s], wc, wall_state[s], wall_modes[s], t, work)
+        elif bending:
             bend_walls(law[s], wc, wall_state[s], t, work)
         if flexing:
             flex_links(law[s], fc, fs, t)
         press_tips(law[s], t)
+        if swinging:
+            load_walls(wc, wall_state[s], wall_modes[s], t)
         if flexing:
             flex_advance(fc, fs, t)
         status = move_body(dt, side, rates, scale, harmonics, drive[s], motor[s], c, b, t)
@@ -220,13 +231,14 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
 def advance(steps: int, first: int, every: int, dt: float, scale: float, side: np.ndarray,
             table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray, drive: np.ndarray,
             law: np.ndarray, motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-            wall_state: np.ndarray, flex: np.ndarray, flex_state: np.ndarray, body: np.ndarray,
-            tips: np.ndarray, trace: np.ndarray, trace_tips: np.ndarray) -> None:
+            wall_state: np.ndarray, wall_modes: np.ndarray, flex: np.ndarray,
+            flex_state: np.ndarray, body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
+            trace_tips: np.ndarray) -> None:
     """Advance every scenario by ``steps`` (``advance_scenario``), one after the other."""
     for s in range(body.shape[0]):
         advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
-                         drive, law, motor, constants, walls, wall_state, flex, flex_state,
-                         body, tips, trace, trace_tips)
+                         drive, law, motor, constants, walls, wall_state, wall_modes, flex,
+                         flex_state, body, tips, trace, trace_tips)
 
 
 @numba.njit(cache=CACHE, parallel=True)
@@ -234,14 +246,14 @@ def advance_in_parallel(steps: int, first: int, every: int, dt: float, scale: fl
                         side: np.ndarray, table: np.ndarray, rates: np.ndarray,
                         harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
                         motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-                        wall_state: np.ndarray, flex: np.ndarray, flex_state: np.ndarray,
-                        body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
-                        trace_tips: np.ndarray) -> None:
+                        wall_state: np.ndarray, wall_modes: np.ndarray, flex: np.ndarray,
+                        flex_state: np.ndarray, body: np.ndarray, tips: np.ndarray,
+                        trace: np.ndarray, trace_tips: np.ndarray) -> None:
     """``advance`` with the scenarios spread over the cores (numba's prange)."""
     for s in numba.prange(body.shape[0]):
         advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
-                         drive, law, motor, constants, walls, wall_state, flex, flex_state,
-                         body, tips, trace, trace_tips)
+                         drive, law, motor, constants, walls, wall_state, wall_modes, flex,
+                         flex_state, body, tips, trace, trace_tips)
 
 
 class DivergenceError(RuntimeError):
@@ -379,9 +391,14 @@ class Simulator:
         self._law_rows = self.law.rows(self.count)
         self._max_penetration = np.array([s.surface.max_penetration for s in scenarios])
         # Bending walls where any scenario has them (core.walls); None: rigid, as the paper's.
-        # New parameters start the walls from the last forces' shape again at the next step.
+        # New parameters start the walls from the last forces' shape again at the next step
+        # (walls with mass from rest: core.dynamic_walls).
         self.walls = (Walls(scenarios, self.table.side)
                       if any(s.surface.foundation_stiffness > 0.0 for s in scenarios) else None)
+        self._wall_modes = np.zeros((self.count, TABLE, 1))
+        if any(dynamic(s) for s in scenarios):
+            self.walls = DynamicWalls(scenarios, self.table.side, self.dt)
+            self._wall_modes = self.walls.modes
         if self.walls is not None:
             self.walls.tip_x = self._x
             self._walls, self._wall_state = self.walls.constants, self.walls.state
@@ -583,8 +600,8 @@ class Simulator:
     def _kernel_arguments(self) -> Tuple[Any, ...]:
         return (self.dt, self.table.scale, self._side, self.table.stacked, self._rates,
                 self._harmonics, self._drive, self._law_rows, self._motor_rows, self.constants,
-                self._walls, self._wall_state, self._flex, self._flex_state, self.body,
-                self.tips)
+                self._walls, self._wall_state, self._wall_modes, self._flex, self._flex_state,
+                self.body, self.tips)
 
     def step(self) -> None:
         """One semi-implicit Euler step of every scenario (one kernel call)."""

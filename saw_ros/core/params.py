@@ -340,16 +340,20 @@ class WallDynamicsParams(_Validated):
     """
     Walls with mass and damping (issue 31, core.dynamic_walls, docs/walls.md).
 
-    Not yet a Scenario section: the compiled step does not couple them yet, and a parameter the
-    simulator would ignore is not offered. The sets of docs/walls.md: the silicone sheet 0.33
-    kg/m, the soft tissue 0.13 kg/m.
+    The Scenario's ``walls`` section: with bending walls (surface.foundation_stiffness > 0)
+    and a mass or a damping above 0 each wall is a core.dynamic_walls wall in the compiled step.
+    The sets of docs/walls.md: the silicone sheet 0.33 kg/m, the soft tissue 0.13 kg/m.
     """
 
     section = 'walls'
+    # Up to 100 kg/m: a steel plate 10 mm thick and 1 m wide is 79 kg/m; the tissue set is
+    # 0.13. Up to 1e6 N s/m^2: with no mass the wall then relaxes over c / k, 111 s on the
+    # tissue's foundation, longer than any run.
     mass: float = spec(0.0, 'kg/m', 'mass of each surface per metre of its length (the strip '
-                       'and what moves with it); 0 = quasi-static walls', 0.0, 100.0)
-    damping: float = spec(0.0, 'N s/m^2', 'viscous damping of the foundation per metre of wall',
-                          0.0, 1e6)
+                       'and what moves with it); 0 = quasi-static walls; used with '
+                       'surface.foundation_stiffness > 0', 0.0, 100.0)
+    damping: float = spec(0.0, 'N s/m^2', 'viscous damping of the foundation per metre of wall; '
+                          'used with surface.foundation_stiffness > 0', 0.0, 1e6)
 
     # Lighter than this (but not 0, the quasi-static wall) the modes' propagator overflows
     # (-c / 2m, as the flexures' did at 1e-300 kg).
@@ -401,6 +405,7 @@ class Scenario:
     integration: IntegrationParams = field(default_factory=IntegrationParams)
     motor: MotorParams = field(default_factory=MotorParams)
     flexure: FlexureParams = field(default_factory=FlexureParams)
+    walls: WallDynamicsParams = field(default_factory=WallDynamicsParams)
 
     def __post_init__(self) -> None:
         # The robot starts centred in the gap; its crests must leave a fifth of max_penetration
@@ -460,7 +465,7 @@ class Scenario:
         return 'conditions.frequency'
 
     # -- flat name access, shared by the YAML files, the node parameters and the CLI ----------
-    SECTIONS = ('robot', 'surface', 'conditions', 'integration', 'motor', 'flexure')
+    SECTIONS = ('robot', 'surface', 'conditions', 'integration', 'motor', 'flexure', 'walls')
 
     def flat(self) -> Dict[str, Any]:
         """{'surface.normal_stiffness': 15500.0, ...}."""

@@ -58,6 +58,12 @@ CASES = [
     ('simulate --params-file ' + str(ROOT / 'msg_config' / 'camera.yaml'),
      'not parameters of the simulator: '),
     ('simulate --set integration.dt=0', '--set integration.dt = 0 is out of range'),
+    ('simulate --set walls.mass=-1e-9', '--set walls.mass = -1e-09 is out of range: allowed '
+     '[0, 100] kg/m'),
+    ('simulate --set walls.mass=100.001', '--set walls.mass = 100.001 is out of range'),
+    ('simulate --set walls.damping=-1', '--set walls.damping = -1 is out of range'),
+    ('simulate --set walls.damping=1.1e6', '--set walls.damping = 1.1e+06 is out of range: '
+     'allowed [0, 1e+06] N s/m^2'),
     ('statics --mass 1e400', '--mass = inf is invalid'),
     ('calibrate --quick --params motor.hz_per_volt:a:b', 'bounds must be numbers'),
     ('track ' + VIDEO + ' --px-per-m 600 --roi 0,0,0,0', 'tracker roi'),
