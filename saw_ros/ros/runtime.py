@@ -14,6 +14,7 @@ the node is destroyed, and only then the context shut down. Why: docs/measuremen
 from __future__ import annotations
 
 import ast
+import functools
 import os
 import re
 import signal
@@ -53,6 +54,24 @@ class NodeFailure(RuntimeError):
     """The node cannot go on (the reason is the message): log it and exit with status 1."""
 
 
+@functools.lru_cache(maxsize=None)
+def _interruptible_executor_class() -> Any:
+    from rclpy.executors import SingleThreadedExecutor
+
+    class InterruptibleExecutor(SingleThreadedExecutor):
+        # A stop (run_node's KeyboardInterrupt) may land inside __init__, before rclpy sets
+        # _sigint_gc; the half-built executor's __del__ then printed a traceback on the way
+        # out ("no attribute '_sigint_gc'": a recorder stopped as it started, at load).
+        _sigint_gc = None
+
+    return InterruptibleExecutor
+
+
+def single_threaded_executor(context=None):
+    """Return rclpy's SingleThreadedExecutor, safe to stop while it is being built."""
+    return _interruptible_executor_class()(context=context)
+
+
 def make_executor(context=None):
     """
     Return rclpy's EventsExecutor where available, else the SingleThreadedExecutor.
@@ -66,8 +85,7 @@ def make_executor(context=None):
         from rclpy.experimental import EventsExecutor
         return EventsExecutor(context=context)
     except ImportError:
-        from rclpy.executors import SingleThreadedExecutor
-        return SingleThreadedExecutor(context=context)
+        return single_threaded_executor(context)
 
 
 class _StopRequest:
@@ -173,7 +191,7 @@ def run_node(make_node: Callable[[], Any], args=None,
     for parameters the node did not declare are named in a warning.
     """
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
     from saw_ros.core.params import ParameterError
     from saw_ros.ros.params import unknown_start_values
@@ -225,8 +243,7 @@ def run_node(make_node: Callable[[], Any], args=None,
             finally:
                 _STOP.interrupt = False
         else:
-            spin_node(node, executor=None if events else SingleThreadedExecutor(
-                context=node.context))
+            spin_node(node, executor=None if events else single_threaded_executor(node.context))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (NodeFailure, ParameterError) as exc:

@@ -70,3 +70,31 @@ def test_only_the_executables_take_the_signals():
     # this process (pytest) imported saw_ros.ros.nodes and kept its own handler
     from saw_ros.ros import runtime
     assert signal.getsignal(signal.SIGTERM) is not runtime._on_stop_signal
+
+
+def test_a_stop_while_the_executor_is_built_leaves_no_traceback(monkeypatch):
+    # run_node's handler raises KeyboardInterrupt between two bytecodes; landing inside rclpy's
+    # SingleThreadedExecutor.__init__ (before it sets _sigint_gc), the half-built executor's
+    # __del__ printed "Exception ignored in ... no attribute '_sigint_gc'" with a traceback.
+    import gc
+
+    import rclpy
+    from rclpy import executors
+    from rclpy.context import Context
+    from saw_ros.ros.runtime import single_threaded_executor
+
+    def interrupted(context):
+        raise KeyboardInterrupt
+
+    unraisable = []
+    monkeypatch.setattr(sys, 'unraisablehook', unraisable.append)
+    monkeypatch.setattr(executors, 'SignalHandlerGuardCondition', interrupted)
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            single_threaded_executor(context)
+        gc.collect()
+    finally:
+        context.try_shutdown()
+    assert not unraisable, [str(u.exc_value) for u in unraisable]

@@ -48,7 +48,7 @@ from saw_ros.interface.topics import CLOCK
 from saw_ros.ros.conversions import clock_cdr
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import CLOCK_QOS, message_class
-from saw_ros.ros.runtime import NodeFailure, run_module, run_node
+from saw_ros.ros.runtime import NodeFailure, run_module, run_node, single_threaded_executor
 from std_srvs.srv import Trigger
 
 SLEEP_MIN = 0.0005   # s: no sleep for a message due sooner than this (timing error < 0.5 ms)
@@ -296,8 +296,7 @@ class Player(Node):
         They run while play() publishes: a `ros2 param set` then gets its answer (refused:
         read-only).
         """
-        from rclpy.executors import SingleThreadedExecutor
-        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor = single_threaded_executor(self.context)
         self._executor.add_node(self)
         self._spinner = threading.Thread(target=self._spin, name='player-services', daemon=True)
         self._spinner.start()

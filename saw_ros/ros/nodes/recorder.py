@@ -53,7 +53,6 @@ import rclpy
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from saw_ros.bag.schema import check_definitions, UnknownMessageType
@@ -62,7 +61,8 @@ from saw_ros.core.params import spec_meta
 from saw_ros.interface.topics import CLOCK, PREFIX
 from saw_ros.ros.params import yaml_text
 from saw_ros.ros.qos import message_class
-from saw_ros.ros.runtime import NodeFailure, run_module, run_node, spin_node
+from saw_ros.ros.runtime import (NodeFailure, run_module, run_node, single_threaded_executor,
+                                 spin_node)
 import yaml
 
 _STOP = object()
@@ -368,7 +368,7 @@ class Recorder(Node):
         context = Context()
         rclpy.init(context=context)
         node = Node('recorder_large', context=context)
-        executor = SingleThreadedExecutor(context=context)
+        executor = single_threaded_executor(context)
         executor.add_node(node)
         return context, node, executor
 
@@ -509,7 +509,7 @@ ROUND_PAUSE = 0.003
 
 
 def _spin(node) -> None:
-    spin_node(node, executor=SingleThreadedExecutor(context=node.context), pause=ROUND_PAUSE)
+    spin_node(node, executor=single_threaded_executor(node.context), pause=ROUND_PAUSE)
 
 
 def parameters():
