@@ -49,6 +49,7 @@ from saw_ros.ros.qos import (image_publisher_qos, INPUT_DEPTH, message_class, pr
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 from saw_ros.ros.simulator_parameters import SimulatorParameters
+from saw_ros.ros.stage_cpu import StageCpu
 from saw_ros.vision import compressed, one_opencv_thread
 from saw_ros.vision.camera import CameraModel, FPS
 from saw_ros.vision.frames import (pose_between, Renderer, RenderOptions, RobotPose,
@@ -198,6 +199,10 @@ class CameraNode(Node):
         self.frames = 0
         self.received = {'poses': 0, 'joint_states': 0, 'walls': 0}
         self.busy = {'render': 0.0, 'publish': 0.0, 'jpeg': 0.0, 'video': 0.0}  # wall s/stage
+        # CPU a frame of each thread's stages (the executor's thread renders, the output
+        # thread encodes and publishes): the final log line.
+        self.render_cpu = StageCpu('render')
+        self.output_cpu = StageCpu('jpeg', 'publish', 'video')
         self.raw = p['image_transport'] in ('raw', 'both')
         self.jpeg_quality = int(p['jpeg_quality']) \
             if p['image_transport'] in ('compressed', 'both') else None
@@ -361,11 +366,13 @@ class CameraNode(Node):
             t_ns = self.frame_ns(self._next)
             if self.follow:
                 self._follow(t_ns)
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), self.render_cpu.now()
             frame = self.renderer.render(self.pose_at(t_ns), (),
                                          lambda t: self.pose_at(t * NS_PER_S), t_ns / NS_PER_S,
                                          self._walls.before(t_ns))
             self.busy['render'] += time.perf_counter() - t0
+            self.render_cpu.add('render', c0)
+            self.render_cpu.frame()
             self._output(frame, t_ns)
             self._next += 1
 
@@ -443,7 +450,7 @@ class CameraNode(Node):
         The video gets the frame even when publishing failed: after Ctrl-C the context is gone,
         but the video still gets every frame.
         """
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), self.output_cpu.now()
         try:
             # First: a reader has the new K for the image.
             self._pub_info.publish(self._info_cdr(info or self.info, t_ns))
@@ -454,16 +461,21 @@ class CameraNode(Node):
                     self._pub_compressed.get_subscription_count():
                 # Here, in the output thread: OpenCV encodes without the GIL.
                 t = time.perf_counter()
+                c0 = self.output_cpu.add('publish', c0)
                 data = compressed.encode_jpeg(frame, self.jpeg_quality)
                 self.busy['jpeg'] += time.perf_counter() - t
+                c0 = self.output_cpu.add('jpeg', c0)
                 self._pub_compressed.publish(self._compressed_cdr(data, t_ns))
             self.frames += 1
         finally:
             t1 = time.perf_counter()
+            c0 = self.output_cpu.add('publish', c0)
             self.busy['publish'] += t1 - t0
             if self.writer is not None:
                 self.writer.write(frame)
                 self.busy['video'] += time.perf_counter() - t1
+                self.output_cpu.add('video', c0)
+            self.output_cpu.frame()
 
     def close(self) -> None:
         if self._thread is not None:
@@ -476,8 +488,9 @@ class CameraNode(Node):
         # benchmark reads this line to check that no input was lost.
         print('[camera] inputs received: ' + ' '.join(f'{k}={v}' for k, v in
               self.received.items()) + f' frames={self.frames}; wall s spent: '
-              + ' '.join(f'{k}={v:.2f}' for k, v in self.busy.items()), file=sys.stderr,
-              flush=True)
+              + ' '.join(f'{k}={v:.2f}' for k, v in self.busy.items())
+              + f'; executor thread {self.render_cpu.summary()}; output thread '
+              + self.output_cpu.summary(), file=sys.stderr, flush=True)
 
 
 def parameters():

@@ -31,6 +31,7 @@ from __future__ import annotations
 from collections import deque
 import math
 import struct
+import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PoseStamped, TwistStamped
@@ -50,6 +51,7 @@ from saw_ros.ros.params import declare_spec, yaml_text
 from saw_ros.ros.qos import IMAGE_PUBLISHER_DEPTH, IMAGE_QOS, publisher_profile, with_depth
 from saw_ros.ros.ready import Readiness
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
+from saw_ros.ros.stage_cpu import StageCpu
 from saw_ros.vision import compressed, images, one_opencv_thread
 from saw_ros.vision.camera import CameraModel
 from saw_ros.vision.tracker import Tracker, TrackerConfig, TrackStatus
@@ -158,6 +160,7 @@ class VisionNode(Node):
         self._pending = deque(maxlen=PENDING)
         self.results = 0
         self.gaps = checks.FrameGaps()    # frames missing from the image stream, by stamp
+        self.stage_cpu = StageCpu('decode', 'track', 'publish')
         pub = self.create_publisher
         out_qos = publisher_profile('tracking')
         self._pub_front = pub(PointStamped, topics.TRACKING_FRONT, out_qos)
@@ -275,6 +278,7 @@ class VisionNode(Node):
         # pinkness is made of): 1.1 ms against 1.7 at 1280x720, the tracker's accuracy kept
         # (docs/vision.md). PNG and raw images whole.
         reduced = self.reduced if size is not None and bytes(msg.data[:2]) == JPEG_SOI else 1
+        t0 = self.stage_cpu.now()
         try:
             image, encoding = images.decode(msg, reduced)
         except ValueError as exc:
@@ -293,9 +297,19 @@ class VisionNode(Node):
             self.get_logger().warning('image stamps went backwards: tracker restarted')
             self.tracker = Tracker(self.tracker.camera, self.config, encoding,
                                    not self.p['slope_from_motion'])
+        t1 = self.stage_cpu.add('decode', t0)
         res = self.tracker.update(image, t_ns / NS_PER_S, reduced)
         self.results += 1
+        t2 = self.stage_cpu.add('track', t1)
         self._publish(res, t_ns)
+        self.stage_cpu.add('publish', t2)
+        self.stage_cpu.frame()
+
+    def close(self) -> None:
+        """Say what a frame cost (run_node calls this before the node is destroyed)."""
+        # After Ctrl-C the context (and /rosout) may be gone: plain stderr.
+        print(f'[vision] frames tracked {self.results}, {self.stage_cpu.summary()}',
+              file=sys.stderr, flush=True)
 
     def _publish(self, res, t_ns: int) -> None:
         # Points, pose and twists as CDR bytes (conversions' encoders, checked against rclpy):
