@@ -23,6 +23,8 @@ from typing import Optional, Sequence, Tuple
 import cv2
 import numpy as np
 
+from saw_ros.vision.markers import median
+
 GRID = (64, 45)         # small px: cells of the key picture, two corners taken in each
 MIN_FEATURES = 12       # fewest corners for a fit
 AGREE = 0.3             # fraction of the key's corners that must agree on the fit
@@ -54,7 +56,7 @@ def _similarity(src: np.ndarray, dst: np.ndarray):
     if z.size < MIN_FEATURES:
         return None, 0
     shift = w - z
-    m = complex(np.median(shift.real), np.median(shift.imag))
+    m = complex(median(shift.real), median(shift.imag))
     keep = np.abs(shift - m) < 2.0 * INLIER_PX
     k, t = 1.0 + 0j, m
     for _ in range(2):

@@ -183,8 +183,10 @@ class Renderer:
 
     # -- drawing helpers -----------------------------------------------------------------------
     def _fixed(self, surface_points) -> np.ndarray:
-        p = self.camera.to_pixels(surface_points)
-        return np.stack([np.rint(p.real * ONE), np.rint(p.imag * ONE)], axis=-1).astype(np.int32)
+        # (u, v) pairs straight from the complex pixels' memory: a stack of their real and
+        # imaginary parts cost 10 us a polygon, 7 polygons a frame.
+        p = np.ascontiguousarray(self.camera.to_pixels(surface_points), np.complex128)
+        return np.rint(p.view(np.float64).reshape(p.shape + (2,)) * ONE).astype(np.int32)
 
     def _fill(self, img, polygons: Sequence[np.ndarray], colour) -> None:
         for poly in polygons:
@@ -212,7 +214,7 @@ class Renderer:
             edge = [x0 + 1j * level]
             if pressed.any():
                 tx, depth = tips.real[pressed], pen[pressed]
-                xs = np.sort(np.concatenate([np.linspace(a - width, a + width, 9) for a in tx]))
+                xs = np.sort(np.linspace(tx - width, tx + width, 9, axis=1).ravel())
                 d = (xs[:, None] - tx[None, :]) / width
                 bump = np.where(np.abs(d) < 1.0, np.cos(0.5 * np.pi * d) ** 2, 0.0)
                 profile = (bump * depth[None, :]).max(axis=1)

@@ -159,6 +159,21 @@ class Candidate:
         return complex(self.u, self.v)
 
 
+def median(values: np.ndarray) -> float:
+    """
+    Return np.median of a finite array, to the bit, without its overhead.
+
+    np.median costs 8-16 us on the few hundred values of a marker's window or the camera
+    motion's corners, its partition 2.
+    """
+    flat = values.ravel()
+    k = flat.size // 2
+    if flat.size % 2:
+        return float(np.partition(flat, k)[k])
+    part = np.partition(flat, (k - 1, k))
+    return float((part[k - 1] + part[k]) / 2)
+
+
 def check_reduced(reduced: int, downscale: int) -> int:
     """Return ``reduced`` if detection can take a picture reduced by it; ValueError otherwise."""
     if isinstance(reduced, bool) or not isinstance(reduced, (int, np.integer)) or reduced < 1 \
@@ -245,7 +260,7 @@ def detect(image: np.ndarray, config: TrackerConfig = TrackerConfig(),
         rg = roi[..., red] - green
         bg = roi[..., blue] - green
         pink = rg + bg
-        pink -= float(np.median(pink))
+        pink -= median(pink)
         peak = float(pink.max())
         if peak < config.min_contrast:
             continue
