@@ -106,9 +106,10 @@ ACTIVE, BETA, HALF, GAIN, TOLERANCE_COLUMN, ITSELF, PATCH_RE, PATCH_IM = range(8
 LARGEST, REACH, ITERATIONS, UNCONVERGED, SOLVED_COUNT = range(8, 13)
 WALL_FIELDS = 14
 # Rows of a scenario's per-tip wall state (Walls.state[s], (WALL_ROWS, 2, n): bottom wall, top
-# wall): the deflection the last step solved at each tip (0: not solved for), the one before,
-# each tip's load on its wall (N), and the tips the last step solved for (indices along the
-# wall, the first walls[SOLVED_COUNT + wall] of each wall's row).
+# wall): the deflection the last step solved at each tip (0: not solved for), the one before
+# (read only where the last step solved), each tip's load on its wall (N), and the tips the
+# last step solved for (indices along the wall, the first walls[SOLVED_COUNT + wall] of each
+# wall's row).
 SOLVED, SOLVED_BEFORE, LOADS, CHOSEN = range(4)
 WALL_ROWS = 4
 # Scratch rows of bend_walls before its two n x n matrices.
@@ -330,36 +331,44 @@ def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.n
     CANDIDATE_MARGIN of the last step's largest deflection below the rigid surface (a wall
     rises towards a tip by at most exp(-3 pi / 4) sin(3 pi / 4) = 7 % of the deflection
     beside it, Hetenyi), in their order along the wall; the others load nothing and read the
-    shape. First guess: the last two steps' deflections extrapolated. ``walls``: the
-    scenario's WALL_FIELDS, ``state`` (WALL_ROWS, 2, n), ``work`` a scratch
-    (WORK_ROWS + 2 n, n) array.
+    shape. First guess: the last two steps' deflections extrapolated (a tip the last step did
+    not solve for starts from 0). ``walls``: the scenario's WALL_FIELDS, ``state``
+    (WALL_ROWS, 2, n), ``work`` a scratch (WORK_ROWS + 2 n, n) array.
     """
     n = state.shape[2]
     reach = walls[REACH]
     largest = -np.inf
     most = 0
     all_converged = True
+    fresh = work[5]
     x, depth, before, w, force = work[6], work[7], work[8], work[9], work[10]
     g, jacobian = work[WORK_ROWS:WORK_ROWS + n], work[WORK_ROWS + n:]
+    # The candidates of both walls in one pass (two chains side by side), each index written
+    # in any case and kept where the tip can touch: no branch to mispredict.
+    bottom = top = 0
+    for i in range(n):
+        work[3, bottom] = i
+        work[4, top] = i
+        bottom += tips[PENETRATION, i] > reach
+        top += tips[PENETRATION, n + i] > reach
     for wall in range(2):
         first = wall * n
-        count = 0
-        for i in range(n):
-            # The last step's solution becomes this step's "before"; this step's starts
-            # empty. The last two steps' deflections extrapolated are the first guess (a tip
-            # not solved for before starts from 0 and settles in the first Newton step).
+        chosen = work[3 + wall]
+        count = top if wall else bottom
+        for k in range(count):
+            i = int(chosen[k])
+            p = first + i
+            x[k], depth[k], before[k] = tips[X, p], tips[PENETRATION, p], tips[DEPTH, p]
             last = state[SOLVED, wall, i]
-            guess = 2.0 * last - state[SOLVED_BEFORE, wall, i]
-            state[SOLVED_BEFORE, wall, i] = last
+            fresh[k] = last == 0.0
+            w[k] = 2.0 * last - state[SOLVED_BEFORE, wall, i] if last != 0.0 else 0.0
+        # The last step's solution becomes this step's "before" and the tips it solved for
+        # start empty (only they hold anything: the rows stay 0 elsewhere).
+        for k in range(int(walls[SOLVED_COUNT + wall])):
+            i = int(state[CHOSEN, wall, k])
+            state[SOLVED_BEFORE, wall, i] = state[SOLVED, wall, i]
             state[SOLVED, wall, i] = 0.0
             state[LOADS, wall, i] = 0.0
-            # Written in any case, kept where the tip can touch (no branch to mispredict).
-            p = first + i
-            state[CHOSEN, wall, count] = i
-            x[count], depth[count], before[count] = tips[X, p], tips[PENETRATION, p], \
-                tips[DEPTH, p]
-            w[count] = guess
-            count += tips[PENETRATION, p] > reach
         walls[SOLVED_COUNT + wall] = count
         if count == 0:
             continue
@@ -371,9 +380,10 @@ def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.n
         most = max(most, iterations)
         all_converged = all_converged and converged
         for k in range(count):
-            i = int(state[CHOSEN, wall, k])
-            if state[SOLVED_BEFORE, wall, i] == 0.0:
-                state[SOLVED_BEFORE, wall, i] = w[k]    # a tip solved for the first time
+            i = int(chosen[k])
+            state[CHOSEN, wall, k] = i
+            if fresh[k] > 0.0:
+                state[SOLVED_BEFORE, wall, i] = w[k]    # solved for the first time: no trend
             state[SOLVED, wall, i] = w[k]
             state[LOADS, wall, i] = force[k]
             tips[SEEN, first + i] = depth[k] - w[k]
