@@ -573,10 +573,10 @@ def swing_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np
                 g[a, b] -= total
                 if b != a:
                     g[b, a] -= total
-        # The convergence test's scale: p times the largest row sum of |G| (twice the own
-        # compliance in bend_walls, which bounds the quasi-static rows; less the modes' share
-        # the neighbours' entries may outweigh the tip's own).
-        scale = 0.0
+        # The convergence test's scale: p times twice the own compliance, as bend_walls' (which
+        # bounds the quasi-static rows), or the largest row sum of |G| where larger (less the
+        # modes' share, the neighbours' entries may outweigh the tip's own).
+        scale = 2.0 * g[0, 0]
         for a in range(count):
             row = 0.0
             for b in range(count):
