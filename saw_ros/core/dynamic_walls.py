@@ -55,11 +55,11 @@ from numpy.typing import ArrayLike
 from saw_ros.core.contact import DEPTH, EXPONENT, NORMAL, PENETRATION, SEEN, X
 from saw_ros.core.jit import CACHE
 from saw_ros.core.params import Scenario, SurfaceParams, WallDynamicsParams
-from saw_ros.core.walls import balance_wall, BETA, CHOSEN, deepest, fill_compliance, GAIN, HALF
-from saw_ros.core.walls import CANDIDATE_MARGIN, ITERATIONS, LARGEST, LOADS, MIN_MARGIN, REACH
+from saw_ros.core.walls import balance_wall, BETA, CANDIDATE_MARGIN, CHOSEN, fill_wall, GAIN
 from saw_ros.core.walls import deflection as quasi_static_deflection
-from saw_ros.core.walls import SOLVED, SOLVED_BEFORE, SOLVED_COUNT, TOLERANCE_COLUMN
-from saw_ros.core.walls import UNCONVERGED, Walls, WORK_ROWS
+from saw_ros.core.walls import HALF, ITERATIONS, ITSELF, LARGEST, LOADS, MIN_MARGIN, PATCH_IM
+from saw_ros.core.walls import PATCH_RE, REACH, SOLVED, SOLVED_BEFORE, SOLVED_COUNT
+from saw_ros.core.walls import TOLERANCE_COLUMN, UNCONVERGED, Walls, WORK_ROWS
 
 # The band: a periodic wall 2 m long, far longer than the decay length 1 / beta (about 1 cm for
 # the walls of docs/walls.md) and than the robot (0.35 m): its images are 2 m away. 512 modes
@@ -466,9 +466,9 @@ def load_walls(walls: np.ndarray, state: np.ndarray, modes: np.ndarray, tips: np
     The forces go to the walls' LOADS (state), for their shape.
     """
     n = state.shape[2]
-    count = int(walls[SOLVED_COUNT])
     tabled = (modes.shape[0] - TABLE) // 2
     for wall in range(2):
+        count = int(walls[SOLVED_COUNT + wall])
         base = WALL_STATE + wall * STATE_ROWS
         chosen, loads = state[CHOSEN, wall], state[LOADS, wall]
         for k in range(count):
@@ -504,62 +504,58 @@ def swing_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np
     the modes' free correction moves the surface the tips press into (SEEN = PENETRATION -
     free, for every tip it can bring within reach), and the same Newton solve
     (``balance_wall``) balances the rest with the contact law; ``load_walls`` then steps the
-    modes under the law's forces. The candidates are chosen on SEEN, so that a wall swinging
-    towards a tip meets it; a tip further from its wall than the bound of the free correction
-    is not tabled. ``modes`` the scenario's rows (TABLE + 4 n, modes); ``walls``, ``state``,
-    ``work`` as bend_walls'.
+    modes under the law's forces. The candidates are the tips whose SEEN is within reach, so
+    that a wall swinging towards a tip meets it; a tip further from its wall than the bound of
+    the free correction is not tabled. Otherwise as bend_walls: the candidates in their order
+    along the wall, the first guess the last two steps' deflections extrapolated (0 for a tip
+    the last step did not solve for). ``modes`` the scenario's rows (TABLE + 4 n, modes);
+    ``walls``, ``state``, ``work`` as bend_walls'.
     """
     n = state.shape[2]
     count_modes = modes.shape[1]
     reach = walls[REACH]
-    count = 0
+    largest = -np.inf
+    most = 0
+    all_converged = True
+    fresh, chosen = work[3], work[4]
+    x, depth, before, w, force = work[6], work[7], work[8], work[9], work[10]
+    g, jacobian = work[WORK_ROWS:WORK_ROWS + n], work[WORK_ROWS + n:]
     for wall in range(2):
+        first = wall * n
+        # The free correction at every tip it can bring within reach of the wall.
         bound = _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
-        modes[SETTINGS, BOUND + wall] = bound
-        inside = 0
+        count = 0
         for i in range(n):
-            p = wall * n + i
+            p = first + i
             if tips[PENETRATION, p] + bound <= reach:
                 continue
             _tip_table(modes, p, tips[X, p])
             tips[SEEN, p] = tips[PENETRATION, p] - _free_at(modes, p)
             if tips[SEEN, p] > reach:
-                inside += 1
-        count = max(count, inside)
-    walls[SOLVED_COUNT] = count
-    largest = -np.inf
-    most = 0
-    all_converged = True
-    x, depth, before, w, force = work[6], work[7], work[8], work[9], work[10]
-    g, jacobian = work[WORK_ROWS:WORK_ROWS + n], work[WORK_ROWS + n:]
-    for wall in range(2):
-        last, prior = state[SOLVED, wall], state[SOLVED_BEFORE, wall]
-        chosen = state[CHOSEN, wall]
-        state[LOADS, wall] = 0.0
-        first = wall * n
-        if count == 0:
-            prior[:] = last
-            last[:] = 0.0
-            continue
-        deepest(tips[SEEN, first:first + n], count, chosen)
-        refreshed = False
+                chosen[count] = i
+                count += 1
         for k in range(count):
             i = int(chosen[k])
             p = first + i
-            if tips[PENETRATION, p] + modes[SETTINGS, BOUND + wall] <= reach:
-                # A tip out of reach, to make up the count: its free correction too.
-                if not refreshed:
-                    _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
-                    refreshed = True
-                _tip_table(modes, p, tips[X, p])
-                tips[SEEN, p] = tips[PENETRATION, p] - _free_at(modes, p)
-            x[k], depth[k], before[k] = tips[X, p], tips[SEEN, p], tips[DEPTH, p]
             # The solve is for what the loads add to the free correction (the depth is less
-            # it too): the last two steps' deflections extrapolated, less it.
-            w[k] = 2.0 * last[i] - prior[i] - (tips[PENETRATION, p] - tips[SEEN, p])
-        prior[:] = last
-        last[:] = 0.0
-        fill_compliance(x, count, walls[BETA], walls[HALF], walls[GAIN], g)
+            # it too).
+            x[k], depth[k], before[k] = tips[X, p], tips[SEEN, p], tips[DEPTH, p]
+            last = state[SOLVED, wall, i]
+            fresh[k] = last == 0.0
+            guess = 2.0 * last - state[SOLVED_BEFORE, wall, i] if last != 0.0 else 0.0
+            w[k] = guess - (tips[PENETRATION, p] - tips[SEEN, p])
+        # The last step's solution becomes this step's "before" and the tips it solved for
+        # start empty.
+        for k in range(int(walls[SOLVED_COUNT + wall])):
+            i = int(state[CHOSEN, wall, k])
+            state[SOLVED_BEFORE, wall, i] = state[SOLVED, wall, i]
+            state[SOLVED, wall, i] = 0.0
+            state[LOADS, wall, i] = 0.0
+        walls[SOLVED_COUNT + wall] = count
+        if count == 0:
+            continue
+        fill_wall(x, count, walls[BETA], walls[HALF], walls[GAIN], walls[ITSELF],
+                  walls[PATCH_RE], walls[PATCH_IM], g)
         # Less what the held loads' modes take back: H = sum_m held_m (C_i C_j + S_i S_j).
         for a in range(count):
             pa = first + int(chosen[a])
@@ -591,12 +587,13 @@ def swing_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np
             i = int(chosen[k])
             p = first + i
             total = w[k] + tips[PENETRATION, p] - depth[k]     # the loads' share + the free
-            if prior[i] == 0.0:
-                prior[i] = total        # a tip solved for the first time: no trend
-            last[i] = total
+            state[CHOSEN, wall, k] = i
+            if fresh[k] > 0.0:
+                state[SOLVED_BEFORE, wall, i] = total   # solved for the first time: no trend
+            state[SOLVED, wall, i] = total
             tips[SEEN, p] = depth[k] - w[k]
             largest = max(largest, total)
-    if count == 0:
+    if largest == -np.inf:
         walls[LARGEST] = 0.0
         walls[REACH] = -MIN_MARGIN
         return
@@ -694,6 +691,7 @@ class DynamicWalls(Walls):
         self.dynamic = self.modes[:, SETTINGS, ON] > 0.0
 
     def reset(self) -> None:
+        """Put the walls back flat and their modes at rest."""
         super().reset()
         self.modes[:, WALL_STATE:] = 0.0
 
