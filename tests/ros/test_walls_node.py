@@ -44,8 +44,12 @@ def surfaces_of(raw_markers):
     return [m for m in markers.markers if m.ns == 'surfaces']
 
 
-def test_bending_walls_are_published_and_drawn_bent(ros_context, tmp_path):
-    got = run_and_record(ros_context, tmp_path, dict(SHEET, real_time_factor=1.0,
+# The sheet quasi-static, and with its mass (issue 31: the walls' modes in the node's step).
+@pytest.mark.parametrize('walls', [SHEET, dict(SHEET, **{'walls.mass': 0.33,
+                                                         'walls.damping': 22.0})],
+                         ids=['quasi-static', 'with-mass'])
+def test_bending_walls_are_published_and_drawn_bent(ros_context, tmp_path, walls):
+    got = run_and_record(ros_context, tmp_path, dict(walls, real_time_factor=1.0,
                                                      duration=1.0))
     assert len(got[table.WALLS]) > 20, 'no /saw/walls'
     cloud = deserialize_message(got[table.WALLS][-1], message_class(table.topic(table.WALLS).type))
