@@ -181,6 +181,41 @@ def test_bent_walls_move_their_edges_by_the_deflection_in_pixels():
     assert cover(flat) - cover(up) == pytest.approx(2.5e-3 * cam.scale, abs=0.1)
 
 
+def test_frames_drawn_into_recycled_frames_are_the_frames_drawn_afresh():
+    """
+    The camera node hands each published frame back: the next is drawn into it, only its rows
+    drawn on restored. Bit for bit the frames of a renderer that never reuses one, through
+    jumps across the picture, a 20 deg slope, bent walls that come and go, and three frames
+    in flight.
+    """
+    s = Scenario()
+    along = np.linspace(-0.5, 1.0, 301)
+    bent = np.zeros((2, len(along)))
+    bent[0], bent[1] = plateau(along, 0.1, 4e-3), plateau(along, 0.0, 3e-3)
+    poses = [POSE._replace(x=x, theta=th, phase=ph) for x, th, ph in
+             ((0.0, 0.0, 0.3), (0.45, 0.02, 2.0), (-0.3, -0.03, 4.0), (0.05, 0.0, 1.0),
+              (0.6, 0.01, 5.5), (0.0, 0.0, 0.3), (0.2, -0.02, 3.3), (0.21, -0.02, 3.4))]
+    walls = [None, (along, bent), None, (along, bent), (along, bent), None, None, None]
+    for cam in (CameraModel(), CameraModel(slope=math.radians(20))):
+        recycled = Renderer(s.robot, s.conditions.gap, cam)
+        afresh = Renderer(s.robot, s.conditions.gap, cam)
+        in_flight = []
+        for k in range(24):
+            pose, shape = poses[k % len(poses)], walls[(k // 2) % len(walls)]
+            frame = recycled.render(pose, walls=shape)
+            drawn = afresh.render(pose, walls=shape)
+            assert np.array_equal(frame, drawn), k
+            in_flight.append(frame)
+            if len(in_flight) > 3:
+                recycled.recycle(in_flight.pop(0))
+        assert recycled._free and recycled._drawn   # frames were drawn into again
+    # A noisy picture changes everywhere: its frames are not taken back.
+    noisy = Renderer(s.robot, s.conditions.gap, CameraModel(), RenderOptions(noise=3.0))
+    frame = noisy.render(POSE)
+    noisy.recycle(frame)
+    assert not noisy._free and noisy.render(POSE) is not frame
+
+
 def test_tips_dent_the_deflected_wall_not_the_flat_one():
     """
     The contact law's depth is against the deflected wall (docs/walls.md).

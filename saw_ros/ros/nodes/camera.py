@@ -475,6 +475,8 @@ class CameraNode(Node):
                 self.writer.write(frame)
                 self.busy['video'] += time.perf_counter() - t1
                 self.output_cpu.add('video', c0)
+            # Read by no one any more: the renderer draws a later frame into it.
+            self.renderer.recycle(frame)
             self.output_cpu.frame()
 
     def close(self) -> None:
