@@ -183,10 +183,10 @@ def test_bent_walls_move_their_edges_by_the_deflection_in_pixels():
 
 def test_frames_drawn_into_recycled_frames_are_the_frames_drawn_afresh():
     """
-    The camera node hands each published frame back: the next is drawn into it, only its rows
-    drawn on restored. Bit for bit the frames of a renderer that never reuses one, through
-    jumps across the picture, a 20 deg slope, bent walls that come and go, and three frames
-    in flight.
+    Draw into frames handed back, as the camera node does: the frames of one that never does.
+
+    Only the rows drawn on are restored; bit for bit all the same through jumps across the
+    picture, a 20 deg slope, bent walls that come and go, and three frames in flight.
     """
     s = Scenario()
     along = np.linspace(-0.5, 1.0, 301)
