@@ -690,6 +690,37 @@ class DynamicWalls(Walls):
             rows[SETTINGS, :BOUND] = 1.0, wall.kappa1
         self.dynamic = self.modes[:, SETTINGS, ON] > 0.0
 
+    def carry(self, before: Walls) -> None:
+        """
+        Take over the walls of the last parameters (``before``): new parameters mid-run.
+
+        Where nothing of the walls changed (their constants and modes alike), they go on
+        moving as they were; otherwise each dynamic wall starts at rest in the quasi-static
+        shape of the last loads (the modes at g / K), which the next step's solve then meets
+        (from flat, the robot would drop into walls with mass at every parameter set).
+        """
+        if isinstance(before, DynamicWalls) and before.modes.shape == self.modes.shape and \
+                np.array_equal(before.constants[:, :LARGEST], self.constants[:, :LARGEST]) and \
+                np.array_equal(before.modes[:, :SETTINGS], self.modes[:, :SETTINGS]) and \
+                np.array_equal(before.modes[:, SETTINGS, :BOUND], self.modes[:, SETTINGS, :BOUND]):
+            self.modes[:, WALL_STATE:] = before.modes[:, WALL_STATE:]
+            self.state[:] = before.state
+            self.constants[:, LARGEST:] = before.constants[:, LARGEST:]
+            return
+        if before.state.shape != self.state.shape:
+            return
+        x = self._by_surface(np.asarray(self.tip_x, float))
+        loads = before.state[:, LOADS]
+        for s in np.flatnonzero(self.dynamic):
+            rows = self.modes[s]
+            kappa = rows[SETTINGS, KAPPA1] * np.arange(rows.shape[1])
+            for wall in range(2):
+                base = WALL_STATE + wall * STATE_ROWS
+                g = rows[SHAPE] * (loads[s, wall] @ np.exp(-1j * np.outer(x[s, wall], kappa)))
+                rows[base + G_RE], rows[base + G_IM] = g.real, g.imag
+                rows[base + Z_RE] = g.real / rows[STIFFNESS]
+                rows[base + Z_IM] = g.imag / rows[STIFFNESS]
+
     def reset(self) -> None:
         """Put the walls back flat and their modes at rest."""
         super().reset()

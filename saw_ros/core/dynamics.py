@@ -392,7 +392,8 @@ class Simulator:
         self._max_penetration = np.array([s.surface.max_penetration for s in scenarios])
         # Bending walls where any scenario has them (core.walls); None: rigid, as the paper's.
         # New parameters start the walls from the last forces' shape again at the next step
-        # (walls with mass from rest: core.dynamic_walls).
+        # (walls with mass go on moving, or start at rest in that shape: DynamicWalls.carry).
+        before = getattr(self, 'walls', None)
         self.walls = (Walls(scenarios, self.table.side)
                       if any(s.surface.foundation_stiffness > 0.0 for s in scenarios) else None)
         self._wall_modes = np.zeros((self.count, TABLE, 1))
@@ -401,6 +402,9 @@ class Simulator:
             self._wall_modes = self.walls.modes
         if self.walls is not None:
             self.walls.tip_x = self._x
+        if isinstance(self.walls, DynamicWalls) and before is not None:
+            self.walls.carry(before)
+        if self.walls is not None:
             self._walls, self._wall_state = self.walls.constants, self.walls.state
         else:
             self._walls = np.zeros((self.count, WALL_FIELDS))

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.core.dynamic_walls import critical_speed, DynamicWall, DynamicWalls
+from saw_ros.core.dynamic_walls import critical_speed, DynamicWall, DynamicWalls, WALL_STATE
 from saw_ros.core.dynamic_walls import mode_propagator, moving_load_deflection, ring_down
 from saw_ros.core.dynamics import Simulator
 from saw_ros.core.params import ParameterError, Scenario, SurfaceParams, WallDynamicsParams
@@ -262,6 +262,30 @@ def test_the_walls_share_beyond_the_quasi_static_shape_falls_with_their_mass():
         resolved.append(int(sim.walls.resolved[0]))
     assert shares[0] > 3 * shares[1] > 0 and shares[1] > shares[2] > 0
     assert resolved[-1] == 0 and shares[-1] == 0.0
+
+
+def test_new_parameters_mid_run_keep_the_walls_with_mass_moving():
+    """
+    Parameters set while a run goes on (the node's ros2 param set) rebuild the walls.
+
+    The same parameters: the run goes on as if nothing happened. Other walls: they start at
+    rest in the quasi-static shape of the last loads, not flat (flat, the robot drops into them:
+    here fifteen times the change of the state over the next 50 ms).
+    """
+    scenario = Scenario().with_values(TISSUE_WITH_MASS)
+    other = scenario.with_values({'walls.damping': 1.01 * DAMPING})
+    runs = [Simulator(scenario) for _ in range(4)]
+    for sim in runs:
+        sim.run(0.5)
+    runs[1].set_scenarios([scenario])
+    runs[2].set_scenarios([other])
+    runs[3].set_scenarios([other])
+    runs[3].walls.modes[:, WALL_STATE:] = 0.0           # as if from flat
+    for sim in runs:
+        sim.run(0.05)
+    assert np.array_equal(runs[1].q, runs[0].q)
+    carried, flat = (np.abs(sim.q - runs[0].q).max() for sim in runs[2:])
+    assert 0.0 < carried < 0.1 * flat
 
 
 @pytest.mark.parametrize('name, value', [('walls.mass', -1e-9), ('walls.mass', 100.000001),
