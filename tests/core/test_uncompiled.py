@@ -30,3 +30,16 @@ def test_the_uncompiled_kernels_step_as_the_compiled_ones():
     assert np.ptp(compiled.q[:, :, 0], axis=0).min() > 5e-4       # both robots moved
     # The same operations in the same order; only the math library may differ in a last bit.
     np.testing.assert_allclose(uncompiled, compiled.q[-1], rtol=0.0, atol=1e-9)
+
+
+def test_the_uncompiled_walls_with_mass_step_as_the_compiled_ones():
+    """The walls' modes (core.dynamic_walls: swing_walls, load_walls) too: the tissue set."""
+    values = [{'surface.foundation_stiffness': 9e3, 'surface.bending_stiffness': 1.2e-5,
+               'walls.mass': 0.13, 'walls.damping': 6.8}]
+    compiled = simulate([Scenario().with_values(v) for v in values], DURATION)
+    env = dict(os.environ, NUMBA_DISABLE_JIT='1')
+    out = subprocess.run([sys.executable, '-c', RUN, json.dumps(values)], env=env, check=True,
+                         capture_output=True, text=True, timeout=300)
+    uncompiled = np.array(json.loads(out.stdout.splitlines()[-1]))
+    assert np.abs(compiled.q[-1, 0, 1] - compiled.q[0, 0, 1]) > 1e-3      # it landed
+    np.testing.assert_allclose(uncompiled, compiled.q[-1], rtol=0.0, atol=1e-9)
