@@ -18,7 +18,8 @@ Issue 31 figures: walls with mass and damping (core.dynamic_walls), link flexure
   loads, compiled.
 
 Coupled into the simulator's step (the tissue set of docs/walls.md: k 9e3 N/m^2, EI 1.2e-5
-N m^2, 0.13 kg/m, a tenth of critical damping), each against the quasi-static tissue walls:
+N m^2, 0.13 kg/m, a tenth of critical damping), each against the quasi-static tissue walls
+(null where a run was pushed through its wall, or no stall lies between 1e3 and 1e5 N/m^2):
 
 - ``dynamic_walls_massless_limit_max_dev``: the default scenario on the tissue walls with
   walls.mass 0, stepped through the modes' solve (in a batch with the tissue's mass), against
@@ -205,10 +206,10 @@ def climbs(foundation, mass, duration=4.0) -> bool:
     return analyse(tr.t, tr.q[:, 0], scenario.robot, scenario.frequency).advance_ratio >= STALL_AR
 
 
-def stall_foundation(mass, low=1e3, high=1e5, share=0.02) -> float:
-    """Return the softest foundation that still climbs, by bisection in log k (N/m^2)."""
+def stall_foundation(mass, low=1e3, high=1e5, share=0.02):
+    """Return the softest foundation that still climbs (bisection in log k, N/m^2), or None."""
     if not climbs(high, mass) or climbs(low, mass):
-        return math.nan                               # not bracketed: no number
+        return None                                   # not bracketed: no number
     while high / low > 1.0 + share:
         middle = math.sqrt(low * high)
         low, high = (low, middle) if climbs(middle, mass) else (middle, high)
@@ -230,7 +231,10 @@ def run(quick=False):
                                       for m in (0.0, TISSUE[2], 10 * TISSUE[2]))
 
     def change(a, b):
-        return round(100.0 * (b[1] / a[1] - 1.0), 3) if a and b else math.nan
+        return round(100.0 * (b[1] / a[1] - 1.0), 3) if a and b else None
+
+    def rounded(value, digits=None):
+        return None if value is None else round(value, digits)
 
     out = {'moving_load_deflection_error_pct': round(moving, 4),
            'critical_speed_error_pct': round(critical_speed_error(), 4),
@@ -242,16 +246,16 @@ def run(quick=False):
            'core_steps_per_s_dynamic_walls': round(swinging),
            'core_steps_per_s_rigid_here': round(rigid),
            'dynamic_walls_core_speed_ratio': round(swinging / rigid, 4),
-           'tissue_quasi_static_ar': round(quasi[0], 5) if quasi else math.nan,
-           'tissue_dynamic_ar': round(dynamic[0], 5) if dynamic else math.nan,
+           'tissue_quasi_static_ar': round(quasi[0], 5) if quasi else None,
+           'tissue_dynamic_ar': round(dynamic[0], 5) if dynamic else None,
            'tissue_dynamic_speed_change_pct': change(quasi, dynamic),
            'tissue_45deg_dynamic_speed_change_pct': change(up_quasi, up_dynamic),
-           'tissue_quasi_static_gap_mm': round(1e3 * quasi[2], 3) if quasi else math.nan,
-           'tissue_dynamic_gap_mm': round(1e3 * dynamic[2], 3) if dynamic else math.nan,
+           'tissue_quasi_static_gap_mm': round(1e3 * quasi[2], 3) if quasi else None,
+           'tissue_dynamic_gap_mm': round(1e3 * dynamic[2], 3) if dynamic else None,
            'tissue_heavy_dynamic_speed_change_pct': change(quasi, heavy),
            'tissue_heavy_45deg_speed_change_pct': change(up_quasi, up_heavy)}
     if not quick:
-        out['tissue_stall_foundation_quasi_static'] = round(stall_foundation(0.0))
-        out['tissue_stall_foundation_dynamic'] = round(stall_foundation(TISSUE[2]))
-        out['tissue_heavy_stall_foundation'] = round(stall_foundation(10 * TISSUE[2]))
+        out['tissue_stall_foundation_quasi_static'] = rounded(stall_foundation(0.0))
+        out['tissue_stall_foundation_dynamic'] = rounded(stall_foundation(TISSUE[2]))
+        out['tissue_heavy_stall_foundation'] = rounded(stall_foundation(10 * TISSUE[2]))
     return out
