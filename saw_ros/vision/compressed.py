@@ -24,6 +24,78 @@ def encode_jpeg(frame: np.ndarray, quality: int = DEFAULT_QUALITY) -> bytes:
     return buf.tobytes()
 
 
+class BandJpeg:
+    """
+    JPEGs of frames that are one background but for a band of rows: only the band is encoded.
+
+    Each row of 16 x 16 blocks (4:2:0) is a restart interval of its own, which a decoder reads
+    with no reference to the rows before it (that is what restart markers are for): the
+    background's rows are encoded once, and a frame's JPEG is theirs with the band's rows,
+    encoded alone, put in their place. Byte for byte what ``cv2.imencode`` makes of the whole
+    frame with the same restart interval (tests/vision/test_vision_compressed.py); its pixels
+    decode as those of ``encode_jpeg`` (restart markers change no coefficient). The camera's
+    robot and surfaces span a tenth of the rows: 0.2 ms a frame against 1.5 at 1280x720.
+    """
+
+    MCU = 16                        # rows of a block row at 4:2:0
+
+    def __init__(self, background: np.ndarray, quality: int = DEFAULT_QUALITY):
+        self.background = background
+        height, width = background.shape[:2]
+        self.rows = -(-height // self.MCU)
+        self.params = [int(cv2.IMWRITE_JPEG_QUALITY), int(quality),
+                       int(cv2.IMWRITE_JPEG_SAMPLING_FACTOR),
+                       int(cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420),
+                       int(cv2.IMWRITE_JPEG_RST_INTERVAL), -(-width // self.MCU)]
+        self.head, self.segments = self._split(self._encode(background))
+
+    def _encode(self, image: np.ndarray) -> bytes:
+        ok, buf = cv2.imencode('.jpg', image, self.params)
+        if not ok:
+            raise ValueError('JPEG encoding failed')
+        return buf.tobytes()
+
+    @staticmethod
+    def _split(data: bytes):
+        """Return (the headers up to the scan's data, the entropy-coded data of each row)."""
+        at = 2
+        while data[at + 1] != 0xDA:             # to the start of scan
+            at += 2 + int.from_bytes(data[at + 2:at + 4], 'big')
+        start = at + 2 + int.from_bytes(data[at + 2:at + 4], 'big')
+        body = data[start:-2]                   # (the last two bytes: end of image)
+        segments, begin, at = [], 0, body.find(b'\xff')
+        while at != -1:
+            if 0xD0 <= body[at + 1] <= 0xD7:    # a restart marker (else 0xFF 0x00: a byte)
+                segments.append(body[begin:at])
+                begin = at + 2
+            at = body.find(b'\xff', at + 2)
+        segments.append(body[begin:])
+        return data[:start], segments
+
+    def encode(self, frame: np.ndarray, first: int, end: int) -> bytes:
+        """Return the JPEG of ``frame``, the background's but in rows first .. end - 1."""
+        if frame.shape != self.background.shape:
+            raise ValueError(f'frame {frame.shape}, background {self.background.shape}')
+        a, b = max(first, 0) // self.MCU, min(-(-end // self.MCU), self.rows)
+        if a >= b:
+            segments = self.segments
+        else:
+            band = self._split(self._encode(frame[a * self.MCU:b * self.MCU]))[1]
+            if len(band) != b - a:
+                raise ValueError(f'{len(band)} restart intervals for {b - a} block rows')
+            segments = self.segments[:a] + band + self.segments[b:]
+        parts = [self.head]
+        for k, segment in enumerate(segments):
+            parts.append(segment)
+            if k < len(segments) - 1:
+                parts.append(RESTART[k % 8])
+        parts.append(b'\xff\xd9')
+        return b''.join(parts)
+
+
+RESTART = tuple(bytes((0xFF, 0xD0 + k)) for k in range(8))
+
+
 def decode(format_: str, data, reduced: int = 1) -> tuple:
     """
     Return (H x W x 3 uint8 image, encoding) of a CompressedImage's format and data.

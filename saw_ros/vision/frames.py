@@ -452,6 +452,19 @@ class Renderer:
         np.copyto(frame[first:end], self._background[first:end])
         return frame
 
+    @property
+    def background(self) -> np.ndarray:
+        """Return the static picture the robot is drawn over (not to be written to)."""
+        return self._background
+
+    def rows_drawn(self, frame: np.ndarray) -> Optional[Tuple[int, int]]:
+        """
+        Return (first, end) of the rows ``render`` drew on in ``frame`` (not yet recycled).
+
+        The frame is the background everywhere else. None: not known (any other picture).
+        """
+        return self._drawn.get(id(frame))
+
     def recycle(self, frame: np.ndarray) -> None:
         """
         Hand back a frame ``render`` returned, once nothing reads it: a later one is drawn in it.

@@ -1,4 +1,5 @@
 """JPEG images in image_transport's compressed format: they decode to the frame."""
+import cv2
 import numpy as np
 import pytest
 
@@ -91,3 +92,31 @@ def test_the_tracker_on_half_size_jpegs_meets_the_accuracy_goals(level_run):
     assert all(r.ok for r in half.results) and len(half.results) == 120
     assert half.position_rms_mm <= 0.1 and half.position_rms_mm <= 1.5 * whole.position_rms_mm
     assert half.pitch_error_deg <= 0.1
+
+
+@pytest.mark.parametrize('size, slope', [((1280, 720), 0.0), ((641, 359), 0.35)])
+def test_a_band_over_the_background_encodes_as_the_whole_frame(size, slope):
+    # Byte for byte cv2's JPEG of the whole frame with the same restart interval, on a picture
+    # of whole block rows and on one of ragged ones (a slope spreads the band over more rows).
+    s = Scenario()
+    camera = CameraModel(width=size[0], height=size[1], scale=600.0 * size[0] / 640, slope=slope)
+    renderer = Renderer(s.robot, s.conditions.gap, camera)
+    band = compressed.BandJpeg(renderer.background, 90)
+    for k, x in enumerate((0.0, 0.21, -0.17, 0.33)):
+        image = renderer.render(RobotPose(x=x, y=s.conditions.gap / 2, theta=0.01 * k,
+                                          phase=0.9 * k))
+        first, end = renderer.rows_drawn(image)
+        assert 0 < first < end < size[1] and (end - first < 0.15 * size[1] or slope)
+        whole = cv2.imencode('.jpg', image, band.params)[1].tobytes()
+        # (and the band taken down to the bottom: its last, ragged block row)
+        assert band.encode(image, first, end) == whole == band.encode(image, first, size[1])
+        data = whole
+        decoded, _ = compressed.decode(compressed.JPEG_FORMAT, data)
+        plain, _ = compressed.decode(compressed.JPEG_FORMAT, compressed.encode_jpeg(image, 90))
+        assert np.array_equal(decoded, plain)
+        renderer.recycle(image)
+    # Nothing drawn: the background's own JPEG; a frame of another size is refused.
+    assert band.encode(renderer.background, 0, 0) == cv2.imencode(
+        '.jpg', renderer.background, band.params)[1].tobytes()
+    with pytest.raises(ValueError, match='background'):
+        band.encode(np.zeros((16, 16, 3), np.uint8), 0, 16)

@@ -211,6 +211,7 @@ class CameraNode(Node):
         # output thread does both, in frame order, so that the executor thread keeps taking
         # the 1 kHz inputs (its queues hold 200 ms) and rendering. OpenCV releases the GIL.
         self._frames_out: 'queue.Queue' = queue.Queue(maxsize=OUTPUT_QUEUE)
+        self._band_jpeg: Optional[compressed.BandJpeg] = None     # the output thread's
         self._thread: Optional[threading.Thread] = None
         self._output_error: Optional[Exception] = None
         # Images go out pre-encoded (one copy of the pixels instead of three); the 1 kHz inputs
@@ -462,7 +463,7 @@ class CameraNode(Node):
                 # Here, in the output thread: OpenCV encodes without the GIL.
                 t = time.perf_counter()
                 c0 = self.output_cpu.add('publish', c0)
-                data = compressed.encode_jpeg(frame, self.jpeg_quality)
+                data = self._jpeg(frame, self.jpeg_quality)
                 self.busy['jpeg'] += time.perf_counter() - t
                 c0 = self.output_cpu.add('jpeg', c0)
                 self._pub_compressed.publish(self._compressed_cdr(data, t_ns))
@@ -478,6 +479,21 @@ class CameraNode(Node):
             # Read by no one any more: the renderer draws a later frame into it.
             self.renderer.recycle(frame)
             self.output_cpu.frame()
+
+    def _jpeg(self, frame: np.ndarray, quality: int) -> bytes:
+        """
+        Return the JPEG of a frame: only its rows the renderer drew on encoded (BandJpeg).
+
+        The rest is the background's, encoded once per renderer (the camera moved: another).
+        A frame the renderer does not know (the camera moved since) is encoded whole.
+        """
+        renderer = self.renderer
+        rows = renderer.rows_drawn(frame)
+        if rows is None:
+            return compressed.encode_jpeg(frame, quality)
+        if self._band_jpeg is None or self._band_jpeg.background is not renderer.background:
+            self._band_jpeg = compressed.BandJpeg(renderer.background, quality)
+        return self._band_jpeg.encode(frame, *rows)
 
     def close(self) -> None:
         if self._thread is not None:
