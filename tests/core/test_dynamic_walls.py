@@ -267,6 +267,19 @@ def test_the_walls_share_beyond_the_quasi_static_shape_falls_with_their_mass():
     assert resolved[-1] == 0 and shares[-1] == 0.0
 
 
+def test_a_batch_with_walls_with_mass_equals_each_run_alone():
+    """Four scenarios in one parallel call (the modes are each scenario's own): as alone."""
+    masses_slopes = [(M, 0.0), (10 * M, 0.3), (0.0, 0.1), (0.05, 0.0)]
+    scenarios = [Scenario().with_values({**TISSUE, 'walls.mass': m, 'conditions.slope': a,
+                                         'walls.damping': 0.2 * math.sqrt(K * m)})
+                 for m, a in masses_slopes]
+    batch = Simulator(scenarios).run(1.0, record_every=100)
+    for i, scenario in enumerate(scenarios):
+        alone = Simulator(scenario).run(1.0, record_every=100)
+        # (the massless one goes through the modes in the batch, the quasi-static solve alone)
+        np.testing.assert_allclose(batch.q[:, i], alone.q[:, 0], rtol=0, atol=1e-12)
+
+
 def test_new_parameters_mid_run_keep_the_walls_with_mass_moving():
     """
     Parameters set while a run goes on (the node's ros2 param set) rebuild the walls.
