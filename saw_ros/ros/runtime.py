@@ -20,7 +20,7 @@ import re
 import signal
 import sys
 import time
-from typing import Any, Callable, Iterable, List, Optional
+from typing import Any, Callable, cast, Iterable, List, Optional
 
 
 # s a stopping node waits, in all, for reliable subscribers to acknowledge its last messages.
@@ -62,7 +62,7 @@ def _interruptible_executor_class() -> Any:
         # A stop (run_node's KeyboardInterrupt) may land inside __init__, before rclpy sets
         # _sigint_gc; the half-built executor's __del__ then printed a traceback on the way
         # out ("no attribute '_sigint_gc'": a recorder stopped as it started, at load).
-        _sigint_gc = None
+        _sigint_gc = cast(Any, None)   # (rclpy types it as always set: so it is, but late)
 
     return InterruptibleExecutor
 
