@@ -96,6 +96,127 @@ class BandJpeg:
 RESTART = tuple(bytes((0xFF, 0xD0 + k)) for k in range(8))
 
 
+class JpegStream:
+    """
+    Decodes a camera's JPEG stream, decoding again only the block rows that changed.
+
+    A JPEG whose every row of blocks is a restart interval (``BandJpeg``'s) is split there; the
+    rows whose bytes (and headers) are those of the last frame decode to the same pixels, so
+    only a strip of the others, with one row more each side (chroma upsampling reads across
+    rows), is made into a JPEG of its own and decoded, and replaces the last picture's rows but
+    for its outermost pixel rows. The picture is what ``decode`` gives, to the bit (tests); any other JPEG, PNG,
+    or a stream whose rows all change (a moving camera) is decoded whole. The camera's robot
+    spans a tenth of its rows: 0.3 ms a frame against 1.1 at 1280x720, half size. The picture
+    returned is overwritten by the next ``decode``.
+    """
+
+    def __init__(self):
+        self._last = None       # (headers, rows' bytes, reduced, picture) of the last frame
+
+    def decode(self, format_: str, data, reduced: int = 1) -> tuple:
+        """Return (H x W x 3 uint8 image, encoding), as ``decode`` (module function) does."""
+        data = bytes(data)
+        bgr = (format_.split(';')[0].strip() if ';' in format_ else 'bgr8') == 'bgr8'
+        parts = _rows_of(data) if bgr else None
+        last, self._last = self._last, None
+        if parts is None:
+            return decode(format_, data, reduced)
+        head, rows, height_at, mcu = parts
+        changed = None
+        if last is not None and last[0] == head and last[2] == reduced and \
+                len(last[1]) == len(rows):
+            changed = [k for k, (a, b) in enumerate(zip(last[1], rows)) if a != b]
+        image = None
+        if changed is not None and len(changed) <= len(rows) // 2:
+            image = last[3]
+            if changed:
+                image = self._patch(image, head, rows, height_at, mcu, changed, reduced)
+        if image is None:
+            image, encoding = decode(format_, data, reduced)
+        self._last = (head, rows, reduced, image)
+        return image, 'bgr8'
+
+    @staticmethod
+    def _patch(image, head, rows, height_at, mcu, changed, reduced):
+        """Decode rows changed[0] - 1 .. changed[-1] + 1 alone into ``image`` (None: failed)."""
+        a, b = max(changed[0] - 1, 0), min(changed[-1] + 2, len(rows))
+        height = int.from_bytes(head[height_at:height_at + 2], 'big')
+        strip_height = min(b * mcu, height) - a * mcu
+        strip_head = head[:height_at] + strip_height.to_bytes(2, 'big') + head[height_at + 2:]
+        body = [strip_head]
+        for k, row in enumerate(rows[a:b]):
+            body.append(row)
+            if k < b - a - 1:
+                body.append(RESTART[k % 8])
+        body.append(b'\xff\xd9')
+        strip = cv2.imdecode(np.frombuffer(b''.join(body), np.uint8), REDUCED_FLAGS[reduced])
+        if strip is None:
+            return None
+        # All but the strip's first and last pixel rows: their upsampled chroma would read the
+        # block rows beyond, which the strip lacks (the picture's own edges are the strip's).
+        # The rows next to a changed one change too, for the same reason: they are in it.
+        r = mcu // reduced
+        top = 0 if a == 0 else 1
+        end = strip.shape[0] if b == len(rows) else strip.shape[0] - 1
+        if strip.shape[1] != image.shape[1] or a * r + strip.shape[0] > image.shape[0]:
+            return None
+        image[a * r + top:a * r + end] = strip[top:end]
+        return image
+
+
+def _rows_of(data: bytes):
+    """
+    Return (headers, each block row's entropy-coded bytes, offset of the height, block rows' px).
+
+    None unless ``data`` is a baseline JPEG of one scan whose restart interval is one row of
+    blocks (every row's bytes then stand alone).
+    """
+    try:
+        if data[:2] != b'\xff\xd8':
+            return None
+        at, height_at, width, mcu, mcu_w, interval = 2, None, 0, 0, 0, 0
+        while True:
+            if data[at] != 0xFF:
+                return None
+            marker = data[at + 1]
+            size = int.from_bytes(data[at + 2:at + 4], 'big')
+            if marker in (0xC0, 0xC1):               # baseline / extended Huffman
+                height_at = at + 5
+                width = int.from_bytes(data[at + 7:at + 9], 'big')
+                n = data[at + 9]
+                sampling = [data[at + 11 + 3 * k] for k in range(n)]
+                mcu = 8 * max(s & 15 for s in sampling)
+                mcu_w = 8 * max(s >> 4 for s in sampling)
+            elif 0xC2 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+                return None                          # progressive, lossless, arithmetic
+            elif marker == 0xDD:
+                interval = int.from_bytes(data[at + 4:at + 6], 'big')
+            elif marker == 0xDA:
+                start = at + 2 + size
+                break
+            at += 2 + size
+        if height_at is None or not mcu or interval != -(-width // mcu_w):
+            return None
+        height = int.from_bytes(data[height_at:height_at + 2], 'big')
+        if data[-2:] != b'\xff\xd9' or not height:
+            return None
+        body = data[start:-2]
+        rows, begin, at = [], 0, body.find(b'\xff')
+        while at != -1:
+            if 0xD0 <= body[at + 1] <= 0xD7:
+                rows.append(body[begin:at])
+                begin = at + 2
+            elif body[at + 1] != 0:
+                return None                          # another marker: a second scan...
+            at = body.find(b'\xff', at + 2)
+        rows.append(body[begin:])
+        if len(rows) != -(-height // mcu):
+            return None
+        return data[:start], rows, height_at, mcu
+    except IndexError:
+        return None
+
+
 def decode(format_: str, data, reduced: int = 1) -> tuple:
     """
     Return (H x W x 3 uint8 image, encoding) of a CompressedImage's format and data.

@@ -120,3 +120,37 @@ def test_a_band_over_the_background_encodes_as_the_whole_frame(size, slope):
         '.jpg', renderer.background, band.params)[1].tobytes()
     with pytest.raises(ValueError, match='background'):
         band.encode(np.zeros((16, 16, 3), np.uint8), 0, 16)
+
+
+def test_a_jpeg_stream_decodes_again_only_its_rows_that_changed():
+    # Every picture what decode gives, to the bit: the camera's stream (rows that stand alone)
+    # at full, half and quarter size, a quality change midway (new tables: whole), a moving
+    # picture (every row changes: whole), JPEGs without restart intervals, PNG, garbage.
+    s = Scenario()
+    renderer = Renderer(s.robot, s.conditions.gap, CameraModel())
+    band = compressed.BandJpeg(renderer.background, 90)
+    other = compressed.BandJpeg(renderer.background, 70)
+    stream = []
+    for k in range(12):
+        image = renderer.render(RobotPose(x=0.004 * k, y=s.conditions.gap / 2, theta=0.0,
+                                          phase=0.4 * k))
+        stream.append((band if k < 8 else other).encode(image, *renderer.rows_drawn(image)))
+        if k in (4, 5):
+            stream.append(compressed.encode_jpeg(image))
+        if k == 6:
+            stream.append(cv2.imencode('.png', image)[1].tobytes())
+        renderer.recycle(image)
+    shifted = [cv2.imencode('.jpg', np.roll(renderer.background, 3 * k, axis=1),
+                            band.params)[1].tobytes() for k in range(3)]
+    for reduced in (1, 2, 4):
+        jpegs = compressed.JpegStream()
+        for data in stream + shifted + stream[:3]:
+            got, encoding = jpegs.decode(compressed.JPEG_FORMAT, data, reduced)
+            want, _ = compressed.decode(compressed.JPEG_FORMAT, data, reduced)
+            assert encoding == 'bgr8' and np.array_equal(got, want)
+        with pytest.raises(ValueError, match='does not decode'):
+            jpegs.decode(compressed.JPEG_FORMAT, stream[0][:600], reduced)
+    # Another encoding named: decoded whole, as decode does it.
+    rgb, encoding = compressed.JpegStream().decode('rgb8; jpeg compressed bgr8', stream[1])
+    assert encoding == 'rgb8' and np.array_equal(
+        rgb, compressed.decode('rgb8; jpeg compressed bgr8', stream[1])[0])

@@ -161,6 +161,7 @@ class VisionNode(Node):
         self.results = 0
         self.gaps = checks.FrameGaps()    # frames missing from the image stream, by stamp
         self.stage_cpu = StageCpu('decode', 'track', 'publish')
+        self._jpegs = compressed.JpegStream()
         pub = self.create_publisher
         out_qos = publisher_profile('tracking')
         self._pub_front = pub(PointStamped, topics.TRACKING_FRONT, out_qos)
@@ -280,7 +281,9 @@ class VisionNode(Node):
         reduced = self.reduced if size is not None and bytes(msg.data[:2]) == JPEG_SOI else 1
         t0 = self.stage_cpu.now()
         try:
-            image, encoding = images.decode(msg, reduced)
+            # A JPEG stream: only its block rows that changed are decoded again (JpegStream).
+            image, encoding = self._jpegs.decode(msg.format, msg.data, reduced) \
+                if size is not None else images.decode(msg)
         except ValueError as exc:
             raise checks.Refused('undecodable', str(exc)) from None
         h, w = image.shape[:2]
