@@ -301,26 +301,6 @@ def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.nda
 
 
 @numba.njit(cache=CACHE)
-def deepest(values: np.ndarray, count: int, chosen: np.ndarray) -> None:
-    """Set chosen[:count] to the indices of the ``count`` largest values, smallest first."""
-    m = 0
-    for i in range(len(values)):
-        v = values[i]
-        if m == count:
-            if v <= values[int(chosen[0])]:
-                continue
-            m -= 1                                  # drop the smallest, keep the order
-            for k in range(m):
-                chosen[k] = chosen[k + 1]
-        k = m
-        while k > 0 and values[int(chosen[k - 1])] > v:
-            chosen[k] = chosen[k - 1]
-            k -= 1
-        chosen[k] = i
-        m += 1
-
-
-@numba.njit(cache=CACHE)
 def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.ndarray,
                work: np.ndarray) -> None:
     """
