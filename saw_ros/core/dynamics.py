@@ -35,8 +35,9 @@ from saw_ros.core.contact import PENETRATION, press_tips, SEEN, TANGENTIAL, X
 from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
 from saw_ros.core.dynamic_walls import dynamic, DynamicWalls, load_walls, ON, SETTINGS
 from saw_ros.core.dynamic_walls import swing_walls, TABLE
-from saw_ros.core.flexure import flex_advance, flex_links, FLEX_ON, flex_restore, FLEX_ROWS
-from saw_ros.core.flexure import flexure_constants
+from saw_ros.core.flexure import DEFLECTION as FLEX_DEFLECTION, flex_advance, flex_links
+from saw_ros.core.flexure import FLEX_ON, flex_restore, FLEX_ROWS, flexure_constants
+from saw_ros.core.flexure import RATE as FLEX_RATE
 from saw_ros.core.jit import CACHE
 from saw_ros.core.kinematics import check_no_interference, place_tips, TipRateTable, TipTable
 from saw_ros.core.kinematics import turned_table_value
@@ -641,10 +642,34 @@ class Simulator:
         self._check_divergence(i)
 
     @property
+    def deflection(self) -> np.ndarray:
+        """
+        Each wave link's deflection from its kinematic target after the last step, m, (S, n).
+
+        The link flexures' e (core.flexure, + up: away from the bottom wall); 0 for rigid links,
+        also where a scenario's flexures were switched off (their state is kept, not stepped).
+        """
+        return self._flexing(FLEX_DEFLECTION)
+
+    @property
+    def deflection_rate(self) -> np.ndarray:
+        """Return each wave link's deflection rate e' after the last step, m/s, (S, n)."""
+        return self._flexing(FLEX_RATE)
+
+    def _flexing(self, row: int) -> np.ndarray:
+        on = self._flex[:, FLEX_ON, None] > 0.0
+        return np.where(on, self._flex_state[:, row], 0.0)
+
+    @property
     def tip_positions(self) -> np.ndarray:
-        """World (surface frame) tip positions of the last step, complex x + i y, (S, P)."""
-        return cast(np.ndarray,
-                    self._x + 1j * (self.penetration * self._side + self._level * self._side))
+        """
+        World (surface frame) tip positions of the last step, complex x + i y, (S, P).
+
+        Where the contact law pressed them: a link on a flexure moves both its tips by its
+        deflection along the walls' normal (core.flexure: the depths the law sees).
+        """
+        y = self.penetration * self._side + self._level * self._side
+        return cast(np.ndarray, self._x + 1j * (y + np.tile(self.deflection, 2)))
 
     def _check_divergence(self, i: int) -> None:
         """Raise DivergenceError saying how scenario ``i`` left the model."""

@@ -131,7 +131,8 @@ def _cube(namespace: str, id_: int, colour: Colour, corners: ArrayLike, x: float
 
 
 def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: float,
-          phase: Optional[float], geometry: Optional[LinkGeometry] = None) -> List[Shape]:
+          phase: Optional[float], geometry: Optional[LinkGeometry] = None,
+          deflection: Optional[np.ndarray] = None) -> List[Shape]:
     """
     Return the robot as the camera draws it (saw_ros.core.body), at pose and wave phase.
 
@@ -139,6 +140,8 @@ def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: floa
     pink markers where the camera draws them (the ground truth the tracker is measured against)
     and, with a wave phase, the base link, each wave link as a plate from its down tip to its
     up tip (saw_ros.core.kinematics at ``phase``, the helix joint's position) and the tips.
+    ``deflection`` (n,): each link's deflection on its flexure (m, Simulator.deflection), drawn
+    normal to the backbone as the URDF's ``link_NN_flex`` joints move it; None: rigid links.
     """
     parts = body.outline(robot_params, gap)
     shapes = [_cube('body', 0, BODY_COLOUR, parts.head, x, y, theta),
@@ -157,13 +160,14 @@ def robot(robot_params: RobotParams, gap: float, x: float, y: float, theta: floa
     shapes.append(Shape('base_link', 0, 'cube', LINK_COLOUR,
                         (abs(hinge - rear), 0.004, DEPTH), _xyz(middle),
                         float(np.angle(hinge - rear))))
-    plates = _to_surface(body.link_plates(robot_params, g.centres, np.exp(1j * g.angles)),
-                         x, y, theta)
+    shift = 0.0 if deflection is None else 1j * np.asarray(deflection, float)
+    plates = _to_surface(body.link_plates(robot_params, g.centres + shift,
+                                          np.exp(1j * g.angles)), x, y, theta)
     # Two triangles per plate (corners 0 1 2 and 0 2 3).
     triangles = plates[:, [0, 1, 2, 0, 2, 3]].ravel()
     shapes.append(Shape('wave_links', 0, 'triangle_list', LINK_COLOUR, (1.0, 1.0, 1.0),
                         points=_points(triangles)))
-    tips = _to_surface(np.concatenate([g.up_tips, g.down_tips]), x, y, theta)
+    tips = _to_surface(np.concatenate([g.up_tips + shift, g.down_tips + shift]), x, y, theta)
     shapes.append(Shape('tips', 0, 'sphere_list', TIP_COLOUR, (TIP_DIAMETER,) * 3,
                         points=_points(tips)))
     return shapes
@@ -244,7 +248,8 @@ def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float
           phase: Optional[float], contacts: Optional[np.ndarray] = None,
           force_scale: float = FORCE_SCALE,
           walls: Optional[Tuple[np.ndarray, np.ndarray]] = None,
-          geometry: Optional[LinkGeometry] = None) -> List[Shape]:
+          geometry: Optional[LinkGeometry] = None,
+          deflection: Optional[np.ndarray] = None) -> List[Shape]:
     """
     Return every shape of the ground truth at one instant (what /saw/markers draws).
 
@@ -254,10 +259,11 @@ def scene(robot_params: RobotParams, gap: float, pose: Tuple[float, float, float
     fields of /saw/contacts (x, y, normal_force, tangential_force, surface, slipping) or None.
     ``walls``: (abscissae, deflections (2, m)) of bending walls (``bent_surfaces``), or None for
     the flat ones. ``geometry``: the links' ``link_geometry`` at ``phase`` when the caller has it.
+    ``deflection``: the links' deflections on their flexures (``robot``), or None.
     """
     x, y, theta = pose
     flat = surfaces(gap, x) if walls is None else bent_surfaces(gap, *walls)
-    shapes = flat + robot(robot_params, gap, x, y, theta, phase, geometry)
+    shapes = flat + robot(robot_params, gap, x, y, theta, phase, geometry, deflection)
     if contacts is not None and len(contacts):
         shapes += squeezed(robot_params, gap, contacts)
         shapes += force_arrows(contacts['x'], contacts['y'], contacts['normal_force'],

@@ -79,7 +79,8 @@ TOPICS: Tuple[Topic, ...] = (
           'base_link', 'net contact force and moment about the COM'),
     Topic(JOINT_STATES, 'sensor_msgs/msg/JointState', 'stream', 'simulator', '100 Hz',
           'base_link', 'helix phase, speed and motor torque (effort), and every URDF joint: '
-          "each wave link's angle, its centre along x and along y",
+          "each wave link's angle, its centre along x and along y, its deflection on its "
+          'flexure',
           subscribers='camera, comparison, speed_controller',
           trust='a finite helix position and velocity, arrays one a name: the camera draws '
                 'that wave phase, the comparison counts helix turns with it, the speed '

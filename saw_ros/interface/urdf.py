@@ -14,13 +14,21 @@ turning. Frames as saw_ros.interface.frames and the core's body frame (saw_ros.c
 - ``helix``: continuous, about x, at the wave's middle; its position is the wave phase.
 - ``base_link_joint``: revolute about -z at the hinge on the head (the core's base-link angle is
   positive with the rear end up); the base link reaches back ``base_link_width``.
-- each wave link NN, a chain of three joints from ``base_link``, all motion in the plane
+- each wave link NN, a chain of four joints from ``base_link``, all motion in the plane
   (robot_state_publisher has no planar joint: KDL reads URDF's ``planar`` as fixed):
   ``link_NN_x`` prismatic along body x from the centre's rest abscissa (0 in the kinematic
   model, where the centres keep their abscissa), ``link_NN_y`` prismatic along body y (the
-  centre's height on the wave, A cos(...)), ``link_NN`` revolute about z (the backbone slope
-  there, the core's link angle relative to body x). The first two move the frameless links
-  ``link_NN_x`` and ``link_NN_y``; ``link_NN`` carries the drawing.
+  centre's height on the wave, A cos(...)), ``link_NN_flex`` prismatic along body y (the link's
+  deflection e from that kinematic target on its flexure, core.flexure: 0 for rigid links),
+  ``link_NN`` revolute about z (the backbone slope there, the core's link angle relative to
+  body x). The first three move the frameless links ``link_NN_x``, ``link_NN_y`` and
+  ``link_NN_flex``; ``link_NN`` carries the drawing.
+
+The deflection is drawn normal to the backbone (body y), as the flexure acts; the core applies
+it to the tips' depths along the walls' normal (core.flexure), the same to first order in the
+body's pitch theta: the two differ by e sin(theta) along the walls (up to 0.23 mm for the
+1463 N/m set of docs/compliant_robot.md at 6 V on the level, whose links deflect up to 3.6 mm
+and whose body pitches up to 3.6 degrees) and by e (1 - cos(theta)) across them (7 um).
 
 ``link_frames`` gives every frame of the tree at a phase from the core's ``link_geometry`` (the
 simulator's own TF, without robot_state_publisher); ``JointStateTable`` the joint values of
@@ -55,11 +63,13 @@ def joint_names(robot: RobotParams) -> List[str]:
     Return the joints of the URDF, in /saw/joint_states' order.
 
     The helix, the base link, every wave link's angle, then every link's position along x, then
-    along y: the first 2 + n are those of the earlier, angle-only model, at the same places.
+    along y, then its deflection on its flexure: 2 + 4 n joints. The first 2 + n are those of
+    the earlier, angle-only model, the first 2 + 3 n those of the rigid links' (issue 34), at
+    the same places.
     """
     links = link_names(robot)
     return (['helix', 'base_link_joint'] + links + [f'{n}_x' for n in links]
-            + [f'{n}_y' for n in links])
+            + [f'{n}_y' for n in links] + [f'{n}_flex' for n in links])
 
 
 def rest_abscissae(robot: RobotParams) -> np.ndarray:
@@ -71,16 +81,19 @@ def rest_abscissae(robot: RobotParams) -> np.ndarray:
 Frame = Tuple[str, str, Tuple[float, float, float], Tuple[float, float, float, float]]
 
 
-def link_frames(robot: RobotParams, phase: float,
-                geometry: Optional[LinkGeometry] = None) -> List[Frame]:
+def link_frames(robot: RobotParams, phase: float, geometry: Optional[LinkGeometry] = None,
+                deflection: Optional[np.ndarray] = None) -> List[Frame]:
     """
     Return every joint's frame below ``base_link`` at wave ``phase``, from the core's geometry.
 
     The transforms robot_state_publisher computes from the URDF and exact joint values: helix,
-    base link, and per wave link ``link_NN_x``, ``link_NN_y``, ``link_NN``. ``geometry``: the
-    core's ``link_geometry`` at ``phase``, when the caller has it already.
+    base link, and per wave link ``link_NN_x``, ``link_NN_y``, ``link_NN_flex``, ``link_NN``.
+    ``geometry``: the core's ``link_geometry`` at ``phase``, when the caller has it already;
+    ``deflection`` (n,): each link's deflection on its flexure (m, Simulator.deflection; None:
+    rigid links, 0).
     """
     geo = link_geometry(robot, phase) if geometry is None else geometry
+    flex = [0.0] * robot.wave_links if deflection is None else np.asarray(deflection).tolist()
     zero = (0.0, 0.0, 0.0)
     half, base = 0.5 * phase, 0.5 * float(geo.base_angle)     # half angles (quaternions)
     frames: List[Frame] = [
@@ -88,13 +101,15 @@ def link_frames(robot: RobotParams, phase: float,
          (math.sin(half), 0.0, 0.0, math.cos(half))),
         ('base_link', 'base_link_joint', (geo.hinge.real, geo.hinge.imag, 0.0),
          (0.0, 0.0, -math.sin(base), math.cos(base)))]      # about -z, as its joint's axis
-    for name, centre, angle in zip(link_names(robot), geo.centres.tolist(), geo.angles.tolist()):
+    for name, centre, angle, e in zip(link_names(robot), geo.centres.tolist(),
+                                      geo.angles.tolist(), flex):
         frames += [('base_link', f'{name}_x', (float(centre.real), 0.0, 0.0),
                     (0.0, 0.0, 0.0, 1.0)),
                    (f'{name}_x', f'{name}_y', (0.0, float(centre.imag), 0.0),
                     (0.0, 0.0, 0.0, 1.0)),
-                   (f'{name}_y', name, zero, (0.0, 0.0, math.sin(0.5 * angle),
-                                              math.cos(0.5 * angle)))]
+                   (f'{name}_y', f'{name}_flex', (0.0, float(e), 0.0), (0.0, 0.0, 0.0, 1.0)),
+                   (f'{name}_flex', name, zero, (0.0, 0.0, math.sin(0.5 * angle),
+                                                 math.cos(0.5 * angle)))]
     return frames
 
 
@@ -103,9 +118,10 @@ class JointStateTable(PhaseTable):
     The joint values of /saw/joint_states after the helix, over one wave cycle (``joint_names``).
 
     Columns: base-link angle, link angles (rad), link centres along x from their rest abscissa
-    and along y (m), all from the core's ``link_geometry``. Linear interpolation over 4096
-    samples: within 1e-5 rad (the base link's angle, solved by Newton iterations in the core)
-    and 1e-8 m; the simulator's TF uses the exact geometry (``link_frames``).
+    and along y (m), all from the core's ``link_geometry``; the flexures' deflections, which the
+    wave's phase does not give, are appended by ``values_and_rates``. Linear interpolation over
+    4096 samples: within 1e-5 rad (the base link's angle, solved by Newton iterations in the
+    core) and 1e-8 m; the simulator's TF uses the exact geometry (``link_frames``).
     """
 
     def __init__(self, robot: RobotParams, samples: int = 4096):
@@ -117,15 +133,23 @@ class JointStateTable(PhaseTable):
                          samples)
         self.derivative = self.slopes * self.scale      # d value / d phase, per sample
 
-    def values_and_rates(self, phase: float,
-                         omega: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
+    def values_and_rates(self, phase: float, omega: float = 0.0,
+                         deflection: Optional[np.ndarray] = None,
+                         deflection_rate: Optional[np.ndarray] = None
+                         ) -> Tuple[np.ndarray, np.ndarray]:
         """
-        Return the joint values after the helix and their rates at ``phase``.
+        Return the joint values after the helix and their rates at ``phase``: 1 + 4 n each.
 
         ``phase`` is wrapped into [0, 2 pi); rates (rad/s, m/s) are for helix speed ``omega``.
+        The links' flexure joints last: ``deflection`` (m) and ``deflection_rate`` (m/s), (n,)
+        each (Simulator.deflection and deflection_rate; None: rigid links, 0).
         """
         i, w = self.index(phase % (2.0 * math.pi))
-        return self.points[i] + w * self.slopes[i], self.derivative[i] * omega
+        values, rates = self.points[i] + w * self.slopes[i], self.derivative[i] * omega
+        n = (values.size - 1) // 3
+        return (np.concatenate([values, np.zeros(n) if deflection is None else deflection]),
+                np.concatenate([rates, np.zeros(n) if deflection_rate is None
+                                else deflection_rate]))
 
 
 def _helix_x(robot: RobotParams) -> float:
@@ -205,13 +229,16 @@ def urdf(robot: Optional[RobotParams] = None) -> str:
     lines += _box(robot.base_link_width, 2.0 * robot.tip_distance,
                   -robot.base_link_width / 2.0, 'link')
     lines += ['  </link>']
-    # Each wave link: along x (a link may move half its width either way: room for a compliant
-    # model's deflection), along y (the wave's crest and trough, and as much again), turning.
+    # Each wave link: along x (a link may move half its width either way), along y (the
+    # wave's crest and trough, and as much again), deflecting on its flexure (as far: more than
+    # the gap leaves it), turning.
     for name, x in zip(link_names(robot), rest_abscissae(robot).tolist()):
         for suffix, parent, axis, origin, low, high in (
                 ('_x', 'base_link', '1 0 0', x, -b / 2.0, b / 2.0),
                 ('_y', f'{name}_x', '0 1 0', 0.0, -2.0 * robot.amplitude, 2.0 * robot.amplitude),
-                ('', f'{name}_y', '0 0 1', 0.0, -steepest, steepest)):
+                ('_flex', f'{name}_y', '0 1 0', 0.0, -2.0 * robot.amplitude,
+                 2.0 * robot.amplitude),
+                ('', f'{name}_flex', '0 0 1', 0.0, -steepest, steepest)):
             lines += [f'  <joint name="{name}{suffix}" '
                       f'type="{"revolute" if suffix == "" else "prismatic"}">',
                       f'    <parent link="{parent}"/>',

@@ -193,6 +193,27 @@ def test_flexures_in_the_step_deflect_and_keep_the_bodys_momentum():
     np.testing.assert_allclose(sim.depth[0, :n], sim.penetration[0, :n] - state[0], atol=1e-12)
 
 
+def test_the_deflections_and_the_tips_the_simulator_shows_are_the_flexures():
+    """Simulator.deflection (joint states, TF) is the links' e; the tips sit where pressed."""
+    scenario = Scenario().with_values({'flexure.stiffness': TPU.stiffness,
+                                       'flexure.damping': TPU.damping})
+    sim, rigid = Simulator(scenario), Simulator(Scenario())
+    sim.run(0.3)
+    rigid.run(0.3)
+    e, n = sim.deflection[0], scenario.robot.wave_links
+    assert e.shape == (n,) and np.abs(e).max() > 1e-4
+    assert (e == sim._flex_state[0, 0]).all() and (sim.deflection_rate[0] ==
+                                                   sim._flex_state[0, 1]).all()
+    # Both tips of a link move with it: each as deep in its wall as the contact law saw it.
+    tips = sim.tip_positions[0]
+    depth = np.concatenate([-tips[:n].imag, tips[n:].imag - scenario.conditions.gap])
+    np.testing.assert_allclose(depth, sim.depth[0], atol=1e-15)
+    assert not rigid.deflection.any() and not rigid.deflection_rate.any()
+    # Switched off, the flexures keep their state unstepped: the links are rigid, e = 0.
+    sim.set_scenarios([Scenario()])
+    assert not sim.deflection.any() and sim._flex_state[0, 0].any()
+
+
 def test_flexures_with_bending_walls_are_refused():
     with pytest.raises(ParameterError, match='not yet coupled'):
         Simulator(Scenario().with_values({'flexure.stiffness': 2000.0,

@@ -62,6 +62,21 @@ def test_link_plates_lie_on_the_rendered_links(instant):
     assert seen >= scenario.robot.wave_links - 2
 
 
+def test_links_on_flexures_are_drawn_deflected_normal_to_the_backbone(instant):
+    """Each plate and its two tips move by the link's deflection along the body's normal."""
+    scenario, pose, _, _, _, _ = instant
+    n = scenario.robot.wave_links
+    e = np.linspace(-3e-3, 3e-3, n)
+    shapes, bent = (scene_markers.scene(scenario.robot, scenario.conditions.gap, pose, 1.3,
+                                        deflection=d) for d in (None, e))
+    normal = 1j * np.exp(1j * pose[2])                      # the body's y in the surface frame
+    for namespace, rows in (('wave_links', 6), ('tips', 1)):
+        (before,), (after,) = by_namespace(shapes, namespace), by_namespace(bent, namespace)
+        moved = (after.points - before.points)[:, :2] @ [1.0, 1j]
+        shift = np.repeat(e, rows) if namespace == 'wave_links' else np.tile(e, 2)
+        np.testing.assert_allclose(moved, shift * normal, atol=1e-15)
+
+
 def test_body_parts_and_true_markers_lie_where_the_camera_draws_them(instant):
     _, pose, shapes, camera, renderer, image = instant
     head, spine, tail = by_namespace(shapes, 'body')

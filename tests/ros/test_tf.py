@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from saw_ros.bag import schema
+from saw_ros.core.dynamics import Simulator
 from saw_ros.core.kinematics import link_geometry
-from saw_ros.core.params import RobotParams
+from saw_ros.core.params import RobotParams, Scenario
 from saw_ros.graph.process import ManagedProcess, node_command, wait_for
 from saw_ros.interface import frames, share, topics, urdf
 from saw_ros.ros import conversions as conv
@@ -115,8 +116,26 @@ def _wrapped(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+# A compliant robot (issue 31, docs/compliant_robot.md): the best flexure of the level, its links
+# deflecting by millimetres; the TF carries each link where the core deflected it.
+COMPLIANT = {'flexure.stiffness': 1463.0, 'flexure.damping': 3.4}
+
+
+def _core_run(values, steps):
+    """Return {stamp ns: (phase, deflections)} of the core's own run of the node's scenario."""
+    sim = Simulator(Scenario().with_values(values))
+    out = {}
+    for _ in range(steps):
+        sim.step()
+        out[sim.steps * conv.dt_nanoseconds(sim.dt)] = (float(sim.phase[0]),
+                                                        sim.deflection[0].copy())
+    return out
+
+
+@pytest.mark.parametrize('flexure', [{}, COMPLIANT], ids=['rigid', 'compliant'])
 def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(ros_context,
-                                                                                tmp_path):
+                                                                                tmp_path,
+                                                                                flexure):
     from geometry_msgs.msg import PoseStamped
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
@@ -145,8 +164,8 @@ def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(
         if name not in (topics.POSE, topics.JOINT_STATES):
             node.create_subscription(cls, name, lambda data: None, reliable, raw=True)
     proc = ManagedProcess('simulator', node_command('simulator', params={
-        'duration': 0.5, 'real_time_factor': 1.0, 'wait_for_subscribers': 1}), env=None,
-        log_dir=tmp_path)
+        'duration': 0.5, 'real_time_factor': 1.0, 'wait_for_subscribers': 1, **flexure}),
+        env=None, log_dir=tmp_path)
     try:
         def spin(timeout):
             executor.spin_once(timeout_sec=timeout)
@@ -159,33 +178,49 @@ def test_the_simulator_publishes_base_link_on_tf_at_its_pose_and_a_latched_urdf(
     # 60 Hz of simulated time over 0.5 s, each surface -> base_link at the pose, then every
     # frame of the URDF (link_tf, on by default) where the core puts it (issue 34: 1e-6 m and
     # rad), and where robot_state_publisher puts it from /saw/joint_states of the same stamp.
+    # The core's pose: its own run of the same scenario, each link at its kinematic target
+    # moved by its deflection on its flexure normal to the backbone (0 for rigid links).
     assert len(got['tf']) == 31, len(got['tf'])
     robot = RobotParams()
+    core_run = _core_run(flexure, 500)
     model = URDF.from_xml_string(got['urdf'][0].data)
-    worst = {'core_m': 0.0, 'core_rad': 0.0, 'urdf_m': 0.0, 'urdf_rad': 0.0}
+    worst = {'core_m': 0.0, 'core_rad': 0.0, 'urdf_m': 0.0, 'urdf_rad': 0.0, 'joint_m': 0.0}
     # /saw/joint_states at 100 Hz: every 50 ms its stamps meet the 60 Hz TF's (10 in 0.5 s).
     same_stamp = [m for m in got['tf'] if conv.stamp_ns(m.transforms[0].header.stamp) in
                   got['joints']]
     assert len(same_stamp) == 10, sorted(got['joints'])
-    for msg in same_stamp:
+    names = urdf.link_names(robot)
+    deflections = []
+    for msg in got['tf']:
         t, *links = msg.transforms
         assert {x.child_frame_id for x in links} == {link.name for link in model.links} - {
             frames.BASE_LINK}
-        joints = got['joints'][conv.stamp_ns(t.header.stamp)]
-        geo = link_geometry(robot, joints['helix'])
+        stamp = conv.stamp_ns(t.header.stamp)
+        phase, deflection = core_run[stamp]
+        deflections.append(np.abs(deflection).max())
+        geo = link_geometry(robot, phase)
         helix = next(x for x in links if x.child_frame_id == 'helix').transform.rotation
-        assert _wrapped(2.0 * math.atan2(helix.x, helix.w) - joints['helix']) == \
+        assert _wrapped(2.0 * math.atan2(helix.x, helix.w) - phase) == \
             pytest.approx(0.0, abs=1e-9)
         core = {'base_link_joint': (geo.hinge, -float(geo.base_angle))}
-        core.update({name: (complex(c), float(a)) for name, c, a in zip(
-            urdf.link_names(robot), geo.centres, geo.angles)})
+        core.update({name: (complex(c) + 1j * e, float(a)) for name, c, a, e in zip(
+            names, geo.centres, geo.angles, deflection)})
+        joints = got['joints'].get(stamp)
+        if joints is not None:
+            assert joints['helix'] == phase
+            worst['joint_m'] = max(worst['joint_m'], np.abs(
+                [joints[f'{n}_flex'] for n in names] - deflection).max())
         for name, (position, angle) in core.items():
             p, a = _chain(links, name)
             worst['core_m'] = max(worst['core_m'], abs(p - position))
             worst['core_rad'] = max(worst['core_rad'], abs(_wrapped(a - angle)))
-            p, a = _urdf_pose(model, joints, name)
-            worst['urdf_m'] = max(worst['urdf_m'], abs(p - position))
-            worst['urdf_rad'] = max(worst['urdf_rad'], abs(_wrapped(a - angle)))
+            if joints is not None:
+                p, a = _urdf_pose(model, joints, name)
+                worst['urdf_m'] = max(worst['urdf_m'], abs(p - position))
+                worst['urdf_rad'] = max(worst['urdf_rad'], abs(_wrapped(a - angle)))
+    # Rigid links stay on their targets; the compliant ones deflect by millimetres.
+    assert (max(deflections) > 1e-3) if flexure else (max(deflections) == 0.0), deflections
+    assert worst['joint_m'] == 0.0, worst           # the core's deflections as they are
     assert worst['core_m'] < 1e-6 and worst['core_rad'] < 1e-6, worst
     # /saw/joint_states come from a table of the same geometry (JointStateTable: 1e-5 rad).
     assert worst['urdf_m'] < 1e-7 and worst['urdf_rad'] < 1e-5, worst

@@ -4,7 +4,8 @@ The simulator node: the paper's robot on ROS 2 topics at 1 kHz of simulated time
 Steps ``core.Simulator`` and publishes every step exactly once (stamps = simulated time, 1 ms
 apart at the default dt): /clock, /saw/pose, /saw/twist, /saw/contacts and /saw/contact_wrench;
 /saw/joint_states (every joint of the URDF: the helix, the base link, each wave link's position
-in the plane and angle) at ``joint_states_rate`` (100 Hz); and the robot for RViz /
+in the plane, its deflection on its flexure and its angle) at ``joint_states_rate`` (100 Hz);
+and the robot for RViz /
 Foxglove on /saw/markers, with TF of every link of the URDF (``link_tf``, so RobotModel draws the
 wave without robot_state_publisher), at ``markers_rate`` (60 Hz) of simulated time.
 docs/simulator.md lists the topics, frames, QoS and parameters.
@@ -78,7 +79,8 @@ MAX_BATCH = 50               # steps per wake-up: bursts well below the queue de
 # real-time factor, and 100 Hz still resolves the current's ripple at the wave's link rate.
 MOTOR_RATE = 100.0
 # /saw/joint_states per second of simulated time (``joint_states_rate``'s default). Not every
-# step: the 59 joints cost 5 us a step to fill and encode and a 1.9 KB delivery to each reader
+# step: the 78 joints (2 + 4 a wave link) cost 5.4 us a message to fill and encode (4.0 us for
+# the 59 before the flexures' joints, one run, load 3.2) and a 2.5 KB delivery to each reader
 # (camera, recorder), while the camera draws the helix phase interpolated between samples (exact
 # at a constant frequency, within 2e-4 rad with a motor, 12 V; 2 um of link height) and
 # robot_state_publisher and viewers take joint states at tens of Hz (docs/ros.md,
@@ -387,7 +389,9 @@ class SimulatorNode(Node):
         if self.steps % self._joints_every == 0:
             # The helix's speed and torque are the core's: constant, or the motor's under load.
             omega = float(sim.omega[0])
-            values, rates = self._joints.values_and_rates(float(sim.phase[0]), omega)
+            # The links' flexures (core.flexure): their deflections, 0 for rigid links.
+            values, rates = self._joints.values_and_rates(
+                float(sim.phase[0]), omega, sim.deflection[0], sim.deflection_rate[0])
             self._publish_joints(self._joints_cdr(
                 float(sim.phase[0]), omega, values, rates, ns,
                 float(sim.motor_torque[0]) if driven else None))
@@ -406,15 +410,17 @@ class SimulatorNode(Node):
             # The links' geometry once for both: the drawing and the link frames.
             phase = float(sim.phase[0])
             geometry = link_geometry(scenario.robot, phase)
+            deflection = sim.deflection[0]          # the links on their flexures
             self._pub_markers.publish(markers.marker_array_cdr(scene_markers.scene(
                 scenario.robot, scenario.conditions.gap, (x, y, theta), phase, points,
-                walls=walls, geometry=geometry), ns))
+                walls=walls, geometry=geometry, deflection=deflection), ns))
             # The link frames from the core's exact geometry at this phase (the joint states'
             # table is within 1e-5 rad of it): RViz's RobotModel without robot_state_publisher.
             transforms = [(frames.SURFACE, frames.BASE_LINK, (x, y, 0.0),
                            frames.yaw_quaternion(theta))]
             if self._link_tf:
-                transforms += urdf.link_frames(scenario.robot, phase % (2 * math.pi), geometry)
+                transforms += urdf.link_frames(scenario.robot, phase % (2 * math.pi), geometry,
+                                               deflection)
             self._publish_tf(tf.message_cdr(transforms, ns))
 
     def close(self) -> None:
