@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 import tempfile
-from typing import Any, Dict, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence
 
 from saw_ros.cli.errors import UserError
-from saw_ros.core.params import check_value, ParameterError
+from saw_ros.core.params import check_value, ParameterError, Scenario
 
 VIDEO_SUFFIXES = ('.mp4', '.avi')       # what VideoWriter's mp4v codec writes
 YAML_SUFFIXES = ('.yaml', '.yml')
@@ -144,6 +144,25 @@ def spec_number(value: float, flag: str, meta: Dict[str, Any], scale: float = 1.
                            not isinstance(value, bool) else 0.0)
     except ParameterError as exc:
         raise UserError(str(exc).replace(' ()', '')) from None
+
+
+def spec_numbers(text: str, name: str, parameter: str, scale: float = 1.0,
+                 unit: Optional[str] = None) -> List[float]:
+    """
+    Return the comma-separated values of --``name``, each checked against ``parameter``'s range.
+
+    ``scale`` and ``unit`` as ``spec_number``'s (a list in degrees: pi/180, 'deg').
+    """
+    try:
+        values = [float(v) for v in text.split(',') if v.strip()]
+    except ValueError:
+        raise UserError(f'--{name} {text!r}: expects comma-separated numbers') from None
+    if not values:
+        raise UserError(f'--{name} is empty')
+    meta = {n: m for n, _, m in Scenario().describe()}[parameter]
+    for v in values:
+        spec_number(v, f'--{name}', meta, scale, unit, parameter)
+    return values
 
 
 def _round(value: float) -> float:

@@ -25,31 +25,17 @@ from saw_ros.analysis.campaign import (PAPER_SLOPES_DEG, PAPER_VOLTAGES, run_cam
                                        summarise, write_outputs)
 from saw_ros.analysis.compare import load_reference
 from saw_ros.analysis.shown import finite, shown
-from saw_ros.cli.checks import output_dir, spec_number, text_file, video_input
+from saw_ros.cli.checks import output_dir, spec_numbers, text_file, video_input
 from saw_ros.cli.commands.simulate import add_scenario_arguments, scenario_from_args
 from saw_ros.cli.errors import UserError
 from saw_ros.cli.pool import add_pool_arguments, pool_from_args
-from saw_ros.core.params import ParameterError, Scenario
+from saw_ros.core.params import ParameterError
 from saw_ros.interface.config import config_path
 
 HELP = "run the paper's 20-condition validation campaign (simulation, camera, tracker)"
 # The two modes each have their own folder: one does not overwrite the other's table.
 DEFAULT_OUT = Path('out/campaign/paper')
 FOOTAGE_OUT = Path('out/campaign/footage')
-
-
-def _numbers(text, name, parameter, scale=1.0, unit=None):
-    """Return the comma-separated values of --``name``, each checked against its range."""
-    try:
-        values = [float(v) for v in text.split(',') if v.strip()]
-    except ValueError:
-        raise UserError(f'--{name} {text!r}: expects comma-separated numbers') from None
-    if not values:
-        raise UserError(f'--{name} is empty')
-    meta = {n: m for n, _, m in Scenario().describe()}[parameter]
-    for v in values:
-        spec_number(v, f'--{name}', meta, scale, unit, parameter)
-    return values
 
 
 def add_arguments(p):
@@ -136,8 +122,8 @@ def _summary(summary, what: str, spec: str, paths) -> int:
 def run(args):
     if args.videos is not None:
         return run_videos(args)
-    slopes = _numbers(args.slopes, 'slopes', 'conditions.slope', math.pi / 180.0, 'deg')
-    voltages = _numbers(args.voltages, 'voltages', 'motor.voltage')
+    slopes = spec_numbers(args.slopes, 'slopes', 'conditions.slope', math.pi / 180.0, 'deg')
+    voltages = spec_numbers(args.voltages, 'voltages', 'motor.voltage')
     base = scenario_from_args(args)
     for v in voltages:
         base.with_values({'motor.voltage': v})            # validates each voltage
