@@ -388,3 +388,182 @@ How these figures move with the step: docs/compliant_robot.md.
 """
     with (out / 'report.md').open('a') as f:
         f.write(text)
+
+
+# -- level to vertical: the closed loop at every slope ---------------------------------------
+def closed_loop_slopes(base: Scenario, slopes_deg: Sequence[float],
+                       stiffnesses: Sequence[float] = STIFFNESSES,
+                       ratios: Sequence[float] = DAMPING_RATIOS, link_mass: float = LINK_MASS,
+                       settle: float = SETTLE_S, measure: float = MEASURE_S,
+                       progress: Optional[Callable[[int], None]] = None,
+                       done: Optional[Dict[float, Dict[str, Any]]] = None
+                       ) -> Dict[str, Any]:
+    """
+    Run ``closed_loop`` on every slope of ``slopes_deg`` (degrees, + climbs) at base's voltage.
+
+    Each slope against the rigid robot on that slope at the same speed (its own constant-voltage
+    curve). A slope where a run leaves the model (DivergenceError) is kept with the reason, not
+    dropped. ``done``: closed_loop results already run, by slope in degrees. Returns 'slopes'
+    (one dict a slope: 'slope_deg', and closed_loop's result or 'error') and 'robust': the one
+    structure that keeps SPEED_SHARE of the rigid speed with a reduction on every slope that
+    ran, the best at its least reduction (``robust``).
+    """
+    from saw_ros.core.dynamics import DivergenceError
+    out = []
+    for slope in slopes_deg:
+        result: Dict[str, Any] = {'slope_deg': float(slope)}
+        if done is not None and float(slope) in done:
+            result.update(done[float(slope)])
+        else:
+            scenario = base.with_values({'conditions.slope': math.radians(slope)})
+            try:
+                result.update(closed_loop(scenario, stiffnesses, ratios, link_mass, settle,
+                                          measure))
+            except DivergenceError as exc:
+                result['error'] = str(exc)
+        out.append(result)
+        if progress is not None:
+            progress(1)
+    return {'slopes': out, 'robust': robust([r for r in out if 'error' not in r])}
+
+
+def robust(results: Sequence[Dict[str, Any]]) -> Optional[Dict[str, Any]]:
+    """
+    Return the structure best on every slope of ``results`` (closed_loop's, one a slope).
+
+    Among the (stiffness, damping ratio) that keep SPEED_SHARE of the rigid speed with a finite
+    reduction on every slope, the one whose least reduction is the largest: its stiffness,
+    damping ratio, 'reductions' and 'speed_shares' (one a slope) and 'least'. None if none does.
+    """
+    if not results:
+        return None
+    best = None
+    for i, row in enumerate(results[0]['rows']):
+        mine = [r['rows'][i] for r in results]
+        if not all(m['speed_share'] >= SPEED_SHARE and math.isfinite(m['reduction_pct'])
+                   for m in mine):
+            continue
+        least = min(m['reduction_pct'] for m in mine)
+        if best is None or least > best['least']:
+            best = {'stiffness': row['stiffness'], 'damping_ratio': row['damping_ratio'],
+                    'reductions': [m['reduction_pct'] for m in mine],
+                    'speed_shares': [m['speed_share'] for m in mine], 'least': least}
+    return best
+
+
+def least_text(least: float) -> str:
+    """Return a structure's least reduction over the slopes as words ('at least x % less')."""
+    return (f'at least {least:.1f} % less vibration' if least >= 0.0 else
+            f'on one slope {-least:.1f} % more vibration')
+
+
+def write_slopes(study: Dict[str, Any], base: Scenario, out: Path) -> None:
+    """Append the slopes' section to ``out``/report.md; write slopes.csv and slopes.png."""
+    from saw_ros.analysis.shape_drive import ConstantCurve
+    ran = [r for r in study['slopes'] if 'error' not in r]
+    columns = ('slope_deg', 'stiffness', 'damping_ratio', 'speed', 'speed_share', 'vibration',
+               'rigid_vibration_same_speed', 'reduction_pct', 'energy_per_m')
+    lines = [','.join(columns)]
+    for r in ran:
+        lines += [','.join(f'{v:.6g}' for v in [r['slope_deg']] + [row[c] for c in columns[1:]])
+                  for row in r['rows']]
+    (out / 'slopes.csv').write_text('\n'.join(lines) + '\n')
+    best = study['robust']
+    fig, (top, bottom) = _plt().subplots(2, 1, figsize=(7.5, 7.5))
+    slopes = [r['slope_deg'] for r in ran]
+    eligible = [r['best'] for r in ran]
+    top.plot([s for s, b in zip(slopes, eligible) if b is not None],
+             [b['reduction_pct'] for b in eligible if b is not None], 'o-',
+             label=f'best at >= {100 * SPEED_SHARE:g} % of the rigid speed, each slope its own')
+    for s, b in zip(slopes, eligible):
+        if b is not None:
+            top.annotate(f'{b["stiffness"]:.0f} N/m, {b["damping_ratio"]:g}',
+                         (s, b['reduction_pct']), textcoords='offset points', xytext=(4, 6),
+                         fontsize=8)
+    if best is not None:
+        top.plot(slopes, best['reductions'], 's--',
+                 label=f'one structure on every slope: {best["stiffness"]:.0f} N/m, damping '
+                       f'ratio {best["damping_ratio"]:g}')
+    top.axhline(30.0, color='grey', ls='--', lw=0.8)
+    top.axhline(0.0, color='k', lw=0.6)
+    top.set_xlabel('slope, degrees')
+    top.set_ylabel('vibration reduction at equal speed, %')
+    top.legend(fontsize=8)
+    top.grid(True, alpha=0.3)
+    ratio = best['damping_ratio'] if best is not None else max(DAMPING_RATIOS)
+    for r in ran:
+        mine = [row for row in r['rows'] if row['damping_ratio'] == ratio]
+        k = [row['stiffness'] for row in mine]
+        line, = bottom.semilogx(k, [row['reduction_pct'] for row in mine], '-',
+                                label=f'{r["slope_deg"]:g} deg')
+        fast = [row for row in mine if row['speed_share'] >= SPEED_SHARE]
+        bottom.semilogx([row['stiffness'] for row in fast],
+                        [row['reduction_pct'] for row in fast], 'o', color=line.get_color())
+        slow = [row for row in mine if row['speed_share'] < SPEED_SHARE]
+        bottom.semilogx([row['stiffness'] for row in slow],
+                        [row['reduction_pct'] for row in slow], 'o', mfc='none',
+                        color=line.get_color())
+    bottom.axhline(0.0, color='k', lw=0.6)
+    bottom.set_xlabel('flexure stiffness per link, N/m')
+    bottom.set_ylabel(f'reduction at damping ratio {ratio:g}, %\n'
+                      f'(hollow: under {100 * SPEED_SHARE:g} % of the rigid speed)')
+    bottom.legend(fontsize=8)
+    bottom.grid(True, which='both', alpha=0.3)
+    fig.suptitle(f'The compliant robot from level to vertical ({base.motor.voltage:g} V)')
+    fig.tight_layout()
+    fig.savefig(out / 'slopes.png', dpi=110)
+    _plt().close(fig)
+    table = ['| slope | rigid speed (cm/s) | rigid vibration (m/s^2 RMS) | best structure | '
+             'reduction at equal speed | speed (% of rigid) | energy (J/m, rigid) |',
+             '|---|---|---|---|---|---|---|']
+    for r in study['slopes']:
+        if 'error' in r:
+            table.append(f'| {r["slope_deg"]:g} deg | - | - | not run: {r["error"]} | - | - | - |')
+            continue
+        rigid, b = r['rigid'], r['best']
+        head = (f'| {r["slope_deg"]:g} deg | {100 * rigid["speed"]:.2f} | '
+                f'{rigid["vibration"]:.3f} |')
+        table.append(head + (' none keeps the speed with a reduction | - | - | - |' if b is None
+                             else f' {b["stiffness"]:.0f} N/m, damping ratio '
+                             f'{b["damping_ratio"]:g} | {b["reduction_pct"]:.1f} % | '
+                             f'{100 * b["speed_share"]:.1f} | {b["energy_per_m"]:.2f} '
+                             f'({rigid["energy_per_m"]:.2f}) |'))
+    if best is None:
+        answer = (f'No single structure of the sweep keeps {100 * SPEED_SHARE:g} % of the rigid '
+                  f'speed with a reduction on every slope.')
+    else:
+        each = '; '.join(f'{x:.1f} % at {s:g} deg, at {100 * v:.1f} % of the rigid speed'
+                         for x, s, v in zip(best['reductions'], slopes, best['speed_shares']))
+        answer = (f'One structure for every slope, at >= {100 * SPEED_SHARE:g} % of the rigid '
+                  f'speed on each: {best["stiffness"]:.0f} N/m at a damping ratio of '
+                  f'{best["damping_ratio"]:g}, {least_text(best["least"])} than the rigid robot '
+                  f'at the same speed (reductions: {each}).')
+    worse = ', '.join(
+        f'{sum(1 for row in r["rows"] if row["reduction_pct"] < 0.0)} of {len(r["rows"])} at '
+        f'{r["slope_deg"]:g} deg' for r in ran)
+    outside = [(r['slope_deg'], sum(1 for row in r['rows'] if math.isnan(row['reduction_pct'])),
+                r['curve_speeds']) for r in ran]
+    unmatched = ' '.join(
+        f'At {s:g} deg {count} of the {len(ran[0]["rows"])} flexures crawl outside the speeds '
+        f'of the constant-voltage curve of the rigid robot ({100 * low:.2f} to {100 * high:.2f} '
+        f'cm/s, +-{100 * ConstantCurve.SPAN:g} % of the voltage): no rigid robot at their speed '
+        f'to compare with, so no reduction (missing from the plot, nan in slopes.csv).'
+        for s, count, (low, high) in outside if count)
+    text = f"""
+## From level to vertical
+
+The same sweep on every slope ({', '.join(f'{s:g}' for s in slopes)} degrees, + climbs, at
+{base.motor.voltage:g} V), each against the rigid robot on that slope at the same speed (its own
+constant-voltage curve), the best structure at >= {100 * SPEED_SHARE:g} % of the rigid speed
+there:
+
+{chr(10).join(table)}
+
+{answer}
+
+Flexures that shake the robot more than rigid links: {worse}. {unmatched}
+
+![slopes](slopes.png)
+"""
+    with (out / 'report.md').open('a') as f:
+        f.write(text)

@@ -58,3 +58,54 @@ def test_the_compliant_robot_itself_is_compared_at_equal_speed():
     assert soft['reduction_pct'] > 15.0
     assert result['best'] is not None and result['best']['reduction_pct'] >= soft['reduction_pct']
     assert soft['energy_per_m'] > 0
+
+
+def test_level_to_vertical_each_slope_against_its_own_rigid_robot(tmp_path):
+    """Closed loop on two slopes: the rigid robot of each slope, the best and the robust one."""
+    study = compliant.closed_loop_slopes(BASE, (0.0, 90.0), stiffnesses=(1462.8, 1e7),
+                                         ratios=(0.7,), settle=1.0, measure=1.0)
+    level, vertical = study['slopes']
+    assert (level['slope_deg'], vertical['slope_deg']) == (0.0, 90.0)
+    # Climbing vertically costs the rigid robot speed and energy (docs/compliant_robot.md).
+    assert vertical['rigid']['speed'] < 0.95 * level['rigid']['speed']
+    assert vertical['rigid']['energy_per_m'] > level['rigid']['energy_per_m']
+    for r in (level, vertical):
+        stiff = r['rows'][1]
+        assert stiff['speed_share'] == pytest.approx(1.0, abs=5e-3)
+    # The robust structure is the one whose least reduction over the slopes is the largest.
+    best = study['robust']
+    assert best is not None and best['stiffness'] == 1462.8
+    assert best['reductions'] == [level['rows'][0]['reduction_pct'],
+                                  vertical['rows'][0]['reduction_pct']]
+    assert best['least'] == min(best['reductions']) > 15.0
+    compliant.write_slopes(study, BASE, tmp_path)
+    text = (tmp_path / 'report.md').read_text()
+    assert '## From level to vertical' in text and '| 90 deg |' in text
+    assert f'{best["least"]:.1f} % less vibration' in text
+    assert len((tmp_path / 'slopes.csv').read_text().splitlines()) == 1 + 2 * 2
+    assert (tmp_path / 'slopes.png').stat().st_size > 10000
+
+
+def test_a_slope_that_leaves_the_model_is_reported_not_dropped(tmp_path):
+    """A 100 N tether throws the robot back beyond the model: each slope says so."""
+    base = BASE.with_values({'conditions.external_force': 100.0})
+    study = compliant.closed_loop_slopes(base, (0.0, 30.0), stiffnesses=(1462.8,),
+                                         ratios=(0.7,), settle=0.5, measure=0.5)
+    assert all('diverged' in r['error'] for r in study['slopes'])
+    assert study['robust'] is None
+    compliant.write_slopes(study, base, tmp_path)
+    text = (tmp_path / 'report.md').read_text()
+    assert text.count('not run: simulation diverged') == 2
+    assert 'No single structure' in text
+
+
+def test_the_robust_structure_keeps_the_speed_on_every_slope():
+    """A structure too slow on one slope is out, whatever it does on the others."""
+    def rows(*figures):
+        return {'rows': [{'stiffness': k, 'damping_ratio': 0.7, 'speed_share': share,
+                          'reduction_pct': reduction} for k, share, reduction in figures]}
+    slopes = [rows((1.0, 1.0, 50.0), (2.0, 1.0, 20.0), (3.0, 1.0, float('nan'))),
+              rows((1.0, 0.9, 60.0), (2.0, 0.96, 10.0), (3.0, 1.0, 90.0))]
+    best = compliant.robust(slopes)
+    assert (best['stiffness'], best['least'], best['reductions']) == (2.0, 10.0, [20.0, 10.0])
+    assert compliant.robust([rows((1.0, 0.5, 10.0))]) is None

@@ -192,6 +192,10 @@ CASES = [
     ('compliant --out {d}/text.txt', '--out {d}/text.txt: is a file, not a folder'),
     ('compliant --slope-deg 100', '--slope-deg = 100'),
     ('compliant --set surface.foundation_stiffness=1e5', 'bending walls'),
+    ('compliant --slopes=91', '--slopes = 91 is out of range: allowed [-90, 90] deg'),
+    ('compliant --slopes=-90.5', '--slopes = -90.5 is out of range'),
+    ('compliant --slopes ,', '--slopes is empty'),
+    ('compliant --slopes 0,nan', '--slopes = nan'),
     # design
     ('design --size 0', '--size 0: a hypercube needs at least 1 geometry'),
     ('design --method grid --size 1', '--size 1: a grid needs at least 2 levels'),
