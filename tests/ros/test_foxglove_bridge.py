@@ -8,6 +8,7 @@ Foxglove does: none of our message classes), and publishes through it. Every wai
 condition with a timeout.
 """
 import re
+import time
 
 import cv2
 import numpy as np
@@ -69,6 +70,12 @@ def test_a_client_decodes_the_pose_the_camera_image_and_the_comparison(tmp_path)
         assert wait_for(lambda: all(client.messages.get(n) for n in wanted), 60), (
             client.counts, [p.output()[-600:] for p in nodes])
         assert wait_for(lambda: nodes[0].returncode is not None, 60), nodes[0].output()
+        # Every step reached the client: the simulator started once the bridge's subscriptions
+        # (the client's) matched, and the batched streams lose nothing in between.
+        steps = int(re.search(r'stopped after (\d+) steps', nodes[0].output()).group(1))
+        streams = topics.step_topics()
+        assert wait_for(lambda: all(client.counts.get(n) == steps for n in streams), 10), (
+            steps, {n: client.counts.get(n) for n in streams})
     finally:
         client.close()
         for p in nodes + [bridge]:
@@ -79,6 +86,9 @@ def test_a_client_decodes_the_pose_the_camera_image_and_the_comparison(tmp_path)
     assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
     assert poses[-1].header.frame_id == 'surface' and np.isfinite(poses[-1].pose.position.x)
     assert poses[-1].pose.position.x > poses[0].pose.position.x      # the robot crawls forward
+    # Log times: the wall clock when the bridge took each message (batched: in order).
+    log_times = [log_ns for log_ns, _, _ in client.messages[topics.POSE]]
+    assert log_times == sorted(log_times) and abs(log_times[-1] - time.time_ns()) < 120e9
     images = client.messages[topics.IMAGE_COMPRESSED]
     image = decoder(client, topics.IMAGE_COMPRESSED)(images[-1][2])
     assert 'jpeg' in image.format, image.format
