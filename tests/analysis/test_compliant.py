@@ -78,10 +78,25 @@ def test_level_to_vertical_each_slope_against_its_own_rigid_robot(tmp_path):
     assert best['reductions'] == [level['rows'][0]['reduction_pct'],
                                   vertical['rows'][0]['reduction_pct']]
     assert best['least'] == min(best['reductions']) > 15.0
-    compliant.write_slopes(study, BASE, tmp_path)
+    # With the shaped drive on top (a short search), against each slope's rigid robot.
+    shaped = compliant.shaped_slopes(BASE, (0.0, 90.0), best['stiffness'],
+                                     best['damping_ratio'], generations=2, population=4)
+    assert [r['slope_deg'] for r in shaped] == [0.0, 90.0]
+    for r in shaped:
+        assert r['speed'] > 0.05 and r['energy_per_m'] > 0.0
+        if r['feasible']:
+            assert r['reduction_pct'] == pytest.approx(
+                100.0 * (1.0 - r['vibration'] / r['rigid_vibration']))
+        else:
+            assert r['drive_pct'] == 0.0 and 'constant voltage' in r['why']
+    assert shaped[1]['energy_per_m'] > shaped[0]['energy_per_m']
+    compliant.write_slopes(study, BASE, tmp_path, shaped)
     text = (tmp_path / 'report.md').read_text()
     assert '## From level to vertical' in text and '| 90 deg |' in text
     assert f'{best["least"]:.1f} % less vibration' in text
+    assert 'With the shaped drive on top' in text and '2 generations of 4' in text
+    for r, alone in zip(shaped, best['reductions']):
+        assert f'| {r["slope_deg"]:g} deg | {alone:.1f} % | ' in text
     assert len((tmp_path / 'slopes.csv').read_text().splitlines()) == 1 + 2 * 2
     assert (tmp_path / 'slopes.png').stat().st_size > 10000
 
