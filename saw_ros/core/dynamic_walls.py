@@ -55,11 +55,11 @@ from numpy.typing import ArrayLike
 from saw_ros.core.contact import DEPTH, EXPONENT, NORMAL, PENETRATION, SEEN, X
 from saw_ros.core.jit import CACHE
 from saw_ros.core.params import Scenario, SurfaceParams, WallDynamicsParams
-from saw_ros.core.walls import balance_wall, BETA, CANDIDATE_MARGIN, CHOSEN, fill_wall, GAIN
+from saw_ros.core.walls import balance_wall, BETA, CHOSEN, close_step, fill_wall, GAIN, HALF
 from saw_ros.core.walls import deflection as quasi_static_deflection
-from saw_ros.core.walls import HALF, ITERATIONS, ITSELF, LARGEST, LOADS, MIN_MARGIN, PATCH_IM
-from saw_ros.core.walls import PATCH_RE, REACH, SOLVED, SOLVED_BEFORE, SOLVED_COUNT
-from saw_ros.core.walls import TOLERANCE_COLUMN, UNCONVERGED, Walls, WORK_ROWS
+from saw_ros.core.walls import ITSELF, LARGEST, LOADS, PATCH_IM, PATCH_RE, REACH, retire_solved
+from saw_ros.core.walls import SOLVED, SOLVED_BEFORE, SOLVED_COUNT, TOLERANCE_COLUMN, Walls
+from saw_ros.core.walls import WORK_ROWS
 
 # The band: a periodic wall 2 m long, far longer than the decay length 1 / beta (about 1 cm for
 # the walls of docs/walls.md) and than the robot (0.35 m): its images are 2 m away. 512 modes
@@ -544,14 +544,7 @@ def swing_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np
             fresh[k] = last == 0.0
             guess = 2.0 * last - state[SOLVED_BEFORE, wall, i] if last != 0.0 else 0.0
             w[k] = guess - (tips[PENETRATION, p] - tips[SEEN, p])
-        # The last step's solution becomes this step's "before" and the tips it solved for
-        # start empty.
-        for k in range(int(walls[SOLVED_COUNT + wall])):
-            i = int(state[CHOSEN, wall, k])
-            state[SOLVED_BEFORE, wall, i] = state[SOLVED, wall, i]
-            state[SOLVED, wall, i] = 0.0
-            state[LOADS, wall, i] = 0.0
-        walls[SOLVED_COUNT + wall] = count
+        retire_solved(walls, state, wall, count)
         if count == 0:
             continue
         fill_wall(x, count, walls[BETA], walls[HALF], walls[GAIN], walls[ITSELF],
@@ -593,15 +586,7 @@ def swing_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np
             state[SOLVED, wall, i] = total
             tips[SEEN, p] = depth[k] - w[k]
             largest = max(largest, total)
-    if largest == -np.inf:
-        walls[LARGEST] = 0.0
-        walls[REACH] = -MIN_MARGIN
-        return
-    walls[ITERATIONS] += most
-    if not all_converged:
-        walls[UNCONVERGED] += 1.0
-    walls[LARGEST] = largest
-    walls[REACH] = largest * -CANDIDATE_MARGIN - MIN_MARGIN
+    close_step(walls, largest, most, all_converged)
 
 
 @compiled

@@ -301,6 +301,35 @@ def balance_wall(depth: np.ndarray, w: np.ndarray, g: np.ndarray, before: np.nda
 
 
 @numba.njit(cache=CACHE)
+def retire_solved(walls: np.ndarray, state: np.ndarray, wall: int, count: int) -> None:
+    """
+    Make the last step's solution of ``wall`` this step's "before"; ``count`` tips are solved now.
+
+    Only the tips it solved for hold anything (the rows stay 0 elsewhere): they start empty.
+    """
+    for k in range(int(walls[SOLVED_COUNT + wall])):
+        i = int(state[CHOSEN, wall, k])
+        state[SOLVED_BEFORE, wall, i] = state[SOLVED, wall, i]
+        state[SOLVED, wall, i] = 0.0
+        state[LOADS, wall, i] = 0.0
+    walls[SOLVED_COUNT + wall] = count
+
+
+@numba.njit(cache=CACHE)
+def close_step(walls: np.ndarray, largest: float, most: int, all_converged: bool) -> None:
+    """Keep a step's bookkeeping: iterations, convergence, and the next step's reach."""
+    if largest == -np.inf:
+        walls[LARGEST] = 0.0
+        walls[REACH] = -MIN_MARGIN
+        return
+    walls[ITERATIONS] += most
+    if not all_converged:
+        walls[UNCONVERGED] += 1.0
+    walls[LARGEST] = largest
+    walls[REACH] = largest * -CANDIDATE_MARGIN - MIN_MARGIN
+
+
+@numba.njit(cache=CACHE)
 def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.ndarray,
                work: np.ndarray) -> None:
     """
@@ -342,14 +371,7 @@ def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.n
             last = state[SOLVED, wall, i]
             fresh[k] = last == 0.0
             w[k] = 2.0 * last - state[SOLVED_BEFORE, wall, i] if last != 0.0 else 0.0
-        # The last step's solution becomes this step's "before" and the tips it solved for
-        # start empty (only they hold anything: the rows stay 0 elsewhere).
-        for k in range(int(walls[SOLVED_COUNT + wall])):
-            i = int(state[CHOSEN, wall, k])
-            state[SOLVED_BEFORE, wall, i] = state[SOLVED, wall, i]
-            state[SOLVED, wall, i] = 0.0
-            state[LOADS, wall, i] = 0.0
-        walls[SOLVED_COUNT + wall] = count
+        retire_solved(walls, state, wall, count)
         if count == 0:
             continue
         fill_wall(x, count, walls[BETA], walls[HALF], walls[GAIN], walls[ITSELF],
@@ -368,15 +390,7 @@ def bend_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, tips: np.n
             state[LOADS, wall, i] = force[k]
             tips[SEEN, first + i] = depth[k] - w[k]
             largest = max(largest, w[k])
-    if largest == -np.inf:
-        walls[LARGEST] = 0.0
-        walls[REACH] = -MIN_MARGIN
-        return
-    walls[ITERATIONS] += most
-    if not all_converged:
-        walls[UNCONVERGED] += 1.0
-    walls[LARGEST] = largest
-    walls[REACH] = largest * -CANDIDATE_MARGIN - MIN_MARGIN
+    close_step(walls, largest, most, all_converged)
 
 
 class Walls:
