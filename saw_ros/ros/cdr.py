@@ -77,40 +77,41 @@ def pose_stamped(data: bytes):
     return sec * NS_PER_S + nanosec, frame_id, x, y, (qx, qy, qz, qw)
 
 
-class JointPosition:
+class JointPositions:
     """
-    Reads one joint's position (by name) from sensor_msgs/JointState CDR bytes.
+    Reads some joints' positions (by name) from sensor_msgs/JointState CDR bytes.
 
-    ``reader(data)`` -> (stamp in ns, position), position None when the joint is not in the
-    message (or has no position). The offsets are worked out once per layout of header and names
-    (a publisher keeps them fixed) and checked by comparing those bytes, so a message costs two
-    struct reads and a bytes comparison.
+    ``reader(data)`` -> (stamp in ns, positions), one per name in ``names``' order, None for a
+    joint not in the message (or without a position). The offsets are worked out once per
+    layout of header and names (a publisher keeps them fixed) and checked by comparing those
+    bytes, so a message costs a struct read a joint and a bytes comparison.
     """
 
-    def __init__(self, name: str):
-        self.name = name
+    def __init__(self, names):
+        self.names = tuple(names)
         self._key = None            # (endianness, bytes of frame_id + names)
-        self._at = None             # body offset of the double, or None
+        self._at = ()               # body offset of each name's double, or None
 
     def _layout(self, data, e: str):
         n = _u32(data, e, 8)
         offset = _align(12 + n, 4)           # names: sequence<string>
         count = _u32(data, e, offset)
         offset += 4
-        index = None
+        wanted = {name.encode(): k for k, name in enumerate(self.names)}
+        index = [None] * len(self.names)
         for i in range(count):
             offset = _align(offset, 4)
             length = _u32(data, e, offset)
             text = bytes(data[_HEADER + offset + 4:_HEADER + offset + 4 + length]).rstrip(b'\0')
-            if index is None and text == self.name.encode():
-                index = i
+            k = wanted.pop(text, None)
+            if k is not None:
+                index[k] = i
             offset += 4 + length
         names_end = offset
         offset = _align(offset, 4)           # position: sequence<double>
         positions = _u32(data, e, offset)
-        at = None
-        if index is not None and index < positions:
-            at = _align(offset + 4, 8) + 8 * index
+        first = _align(offset + 4, 8)
+        at = tuple(None if i is None or i >= positions else first + 8 * i for i in index)
         return (e, bytes(data[_HEADER + 8:_HEADER + names_end])), at
 
     def __call__(self, data):
@@ -120,9 +121,22 @@ class JointPosition:
         if key is None or key[0] != e or \
                 data[_HEADER + 8:_HEADER + 8 + len(key[1])] != key[1]:
             self._key, self._at = self._layout(data, e)
-        at = self._at
-        value = None if at is None else struct.unpack_from(e + 'd', data, _HEADER + at)[0]
-        return sec * NS_PER_S + nanosec, value
+        double = e + 'd'
+        return sec * NS_PER_S + nanosec, [
+            None if at is None else struct.unpack_from(double, data, _HEADER + at)[0]
+            for at in self._at]
+
+
+class JointPosition(JointPositions):
+    """``JointPositions`` of one joint: ``reader(data)`` -> (stamp in ns, position or None)."""
+
+    def __init__(self, name: str):
+        super().__init__((name,))
+        self.name = name
+
+    def __call__(self, data):
+        t, (value,) = super().__call__(data)
+        return t, value
 
 
 class ImageView:

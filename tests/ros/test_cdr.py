@@ -39,6 +39,16 @@ def test_joint_position_reads_the_named_joint_whatever_the_layout(frame):
     assert reader(serialize_message(_joint_state(['helix'], [], 6, frame))) == (6, None)
 
 
+def test_joint_positions_reads_several_named_joints_none_where_missing():
+    names = ['helix', 'link_00_flex', 'x', 'link_01_flex']
+    reader = cdr.JointPositions(['link_00_flex', 'link_01_flex', 'link_02_flex', 'helix'])
+    data = serialize_message(_joint_state(names, [2.5, -1e-3, 7.0, 2e-3], 9, 'base_link'))
+    assert reader(data) == (9, [-1e-3, 2e-3, None, 2.5])
+    # Positions shorter than the names: the joints past them have none.
+    assert reader(serialize_message(_joint_state(names, [2.5, -1e-3], 10, ''))) == \
+        (10, [-1e-3, None, None, 2.5])
+
+
 def test_joint_position_of_the_simulators_encoder():
     names = urdf.joint_names(RobotParams(wave_links=4))
     encoder = conv.JointStateCdr(names)
