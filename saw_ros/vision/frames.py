@@ -4,7 +4,8 @@ Side-view renderer: what a level camera beside the track sees of the robot betwe
 Drawn, back to front: a textured wall (static), the two rigid boards, the two silicone layers with
 a dent wherever a link tip presses in (depth = the tip's penetration, width about a link), bent
 along the walls' shape when the walls bend (``render(..., walls=)``, from /saw/walls), the
-robot (spine, base link, wave links from down tip to up tip, head, tail plate) and two pink
+robot (spine, base link, wave links from down tip to up tip, each moved along body y by its
+deflection on its flexure when ``RobotPose.deflection`` gives them, head, tail plate) and two pink
 markers on the body's side: front on the head, back on the tail plate, both on the body axis and
 symmetric about the COM by default, so that their midpoint is the COM.
 
@@ -59,12 +60,19 @@ WALL = 175                      # grey level of the wall behind
 
 
 class RobotPose(NamedTuple):
-    """Where the robot is: COM (x, y) in the surface frame (m), pitch theta (rad), wave phase."""
+    """
+    Where the robot is: COM (x, y) in the surface frame (m), pitch theta (rad), wave phase.
+
+    ``deflection``: each wave link's deflection on its flexure (m, one per link, head first:
+    core ``Simulator.deflection``, the URDF's ``link_NN_flex``), drawn along body y as the URDF
+    and /saw/markers move the link; None: rigid links, each at its kinematic target.
+    """
 
     x: float
     y: float
     theta: float
     phase: float
+    deflection: Optional[Tuple[float, ...]] = None
 
 
 @dataclass(frozen=True)
@@ -345,6 +353,13 @@ class Renderer:
         if clutter:
             draw_clutter(out, self.camera, clutter, t, 'wall', self._disc)
         centres, direction, base_end, up, down = self._table.geometry(pose.phase)
+        if pose.deflection is not None and any(pose.deflection):
+            # Each link, both its tips with it, moved along body y (scene_markers.robot's shift):
+            # the silicone is dented where the deflected tips press.
+            shift = 1j * np.asarray(pose.deflection, float)
+            if shift.shape != centres.shape:
+                raise ValueError(f'{len(shift)} deflections for {len(centres)} wave links')
+            centres, up, down = centres + shift, up + shift, down + shift
         com = complex(pose.x, pose.y)
         rot = complex(math.cos(pose.theta), math.sin(pose.theta))
         x0, x1 = self.camera.visible_x_range(0.1)
@@ -578,20 +593,31 @@ class StampedShapes:
         return self.v[i - 1] if t - self.t[i - 1] <= max(self.stale_ns, 3 * spacing) else None
 
 
-def pose_between(poses: StampedSeries, phases: StampedSeries, t_ns: float) -> RobotPose:
-    """Return the pose at ``t_ns`` from streams of (x, y, theta) and (helix phase,) samples."""
+def pose_between(poses: StampedSeries, phases: StampedSeries, t_ns: float,
+                 deflections: Optional[StampedSeries] = None) -> RobotPose:
+    """
+    Return the pose at ``t_ns`` from streams of (x, y, theta) and (helix phase,) samples.
+
+    ``deflections``: a stream of the links' deflections (one value a link), or None (or none
+    yet): rigid links.
+    """
     x, y, theta = poses.at(t_ns)
     (phase,) = phases.at(t_ns, wrap=True)
-    return RobotPose(x, y, theta, phase % (2.0 * math.pi))
+    deflection = deflections.at(t_ns) if deflections is not None and deflections.t else None
+    return RobotPose(x, y, theta, phase % (2.0 * math.pi), deflection)
 
 
 def pose_interpolator(t: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarray,
-                      phase: np.ndarray) -> Callable[[float], RobotPose]:
+                      phase: np.ndarray, deflection_t: Optional[np.ndarray] = None,
+                      deflection: Optional[np.ndarray] = None) -> Callable[[float], RobotPose]:
     """
     pose_at(time) of a recorded run.
 
-    The camera node's interpolation (``pose_between``) over the whole record.
+    The camera node's interpolation (``pose_between``) over the whole record. ``deflection``
+    (N, n): the links' deflections at the times ``deflection_t`` (N,), or None: rigid links.
     """
     poses = StampedSeries.of(t, x, y, theta)
     phases = StampedSeries.of(t, phase)
-    return lambda time: pose_between(poses, phases, time)
+    flexing = None if deflection is None else \
+        StampedSeries.of(deflection_t, *np.asarray(deflection, float).T)
+    return lambda time: pose_between(poses, phases, time, flexing)

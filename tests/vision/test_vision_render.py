@@ -1,12 +1,15 @@
 """The renderer and camera model: pixels consistent with K, markers where the renderer says."""
 import math
 
+import cv2
 import numpy as np
 import pytest
 
-from saw_ros.core import Scenario
+from saw_ros.core import body, Scenario
+from saw_ros.core.kinematics import link_geometry
 from saw_ros.vision.camera import CameraModel
-from saw_ros.vision.frames import (PINK, Renderer, RenderOptions, RobotPose, StampedShapes,
+from saw_ros.vision.frames import (LINK, PINK, pose_interpolator, Renderer, RenderOptions,
+                                   RobotPose, StampedShapes,
                                    wall_shape)
 from saw_ros.vision.tracker import detect
 
@@ -254,6 +257,68 @@ def test_tips_dent_the_deflected_wall_not_the_flat_one():
     u = columns[0]
     assert edge_v(bent_alone, u, *win['bent']) - edge_v(flat_alone, u, *win['flat']) == \
         pytest.approx(round(9e-3 * cam.scale), abs=0.05)
+
+
+def test_rigid_links_draw_todays_frames_bit_for_bit():
+    s = Scenario()
+    r = Renderer(s.robot, s.conditions.gap, CameraModel())
+    zeros = POSE._replace(deflection=(0.0,) * s.robot.wave_links)
+    assert np.array_equal(r.render(zeros), r.render(POSE))
+
+
+def test_a_deflected_link_is_drawn_where_its_deflected_plate_is():
+    """
+    Link k moved 4 mm down its body y (12 px at 3000 px/m, level): the rows its plate gained.
+
+    Are the link's colour, those it left are not, and nothing else changes but its tip's dent
+    in the silicone; the other links stay where they were.
+    """
+    s = Scenario()
+    gap, n = s.conditions.gap, s.robot.wave_links
+    cam = CameraModel(scale=3000.0, center_x=0.0, center_y=gap / 2)
+    r = Renderer(s.robot, gap, cam, RenderOptions(texture=False))
+    pose = RobotPose(0.0, gap / 2, 0.0, 1.0)
+    k, e = n // 2, -0.004
+    deflection = np.zeros(n)
+    deflection[k] = e
+    rigid = r.render(pose, ('front', 'back'))
+    bent = r.render(pose._replace(deflection=tuple(deflection)), ('front', 'back'))
+    g = link_geometry(s.robot, pose.phase)
+
+    def plate(shift):
+        corners = cam.to_pixels(complex(pose.x, pose.y) + body.link_plates(
+            s.robot, g.centres[k] + 1j * shift, np.exp(1j * g.angles[k])))
+        mask = np.zeros(rigid.shape[:2], np.uint8)
+        cv2.fillConvexPoly(mask, np.rint(np.stack([corners.real, corners.imag], -1))
+                           .astype(np.int32), 1)
+        return mask
+    before, after = plate(0.0), plate(e)
+    square = np.ones((5, 5), np.uint8)
+    gained = cv2.erode(after & (1 - before), square).astype(bool)
+    left = cv2.erode(before & (1 - after), square).astype(bool)
+    assert gained.sum() > 50 and left.sum() > 50
+    is_link = (bent == LINK).all(axis=2)
+    assert is_link[gained].all() and not (rigid == LINK).all(axis=2)[gained].any()
+    assert not is_link[left].any()
+    # Elsewhere only the down tip's dent (it pressed deeper): within a dent's half-width of the
+    # tip, in the bottom silicone's rows.
+    changed = (rigid != bent).any(axis=2) & \
+        ~cv2.dilate(before | after, square).astype(bool)
+    v, u = np.nonzero(changed)
+    tip = complex(cam.to_pixels(complex(pose.x, pose.y) + g.down_tips[k] + 1j * e))
+    half = body.dent_half_width(s.robot) * cam.scale
+    assert len(u) and np.abs(u - tip.real).max() <= half + 2
+    bottom = complex(cam.to_pixels(complex(pose.x, 0.0))).imag
+    assert v.min() >= bottom - 2 and v.max() <= bottom + 3 + abs(e) * cam.scale
+
+
+def test_pose_interpolator_interpolates_the_deflections():
+    t = np.array([0.0, 1.0, 2.0])
+    at = pose_interpolator(t, t, t, 0 * t, t, np.array([0.0, 2.0]),
+                           np.array([[0.0, 1e-3], [2e-3, -1e-3]]))
+    assert at(0.5).deflection == pytest.approx((5e-4, 5e-4))
+    assert at(3.0).deflection == pytest.approx((2e-3, -1e-3))       # clamped at the end
+    assert pose_interpolator(t, t, t, 0 * t, t)(0.5).deflection is None
 
 
 def test_stamped_shapes_give_the_last_recent_shape_at_or_before_a_time():
