@@ -72,6 +72,15 @@ def joint_names(robot: RobotParams) -> List[str]:
             + [f'{n}_y' for n in links] + [f'{n}_flex' for n in links])
 
 
+def flex_limit(robot: RobotParams) -> float:
+    """
+    Return the largest deflection of a link on its flexure, m: the ``link_NN_flex`` joints' limit.
+
+    As far as the wave moves a link (2 A): more than the gap leaves it.
+    """
+    return 2.0 * robot.amplitude
+
+
 def rest_abscissae(robot: RobotParams) -> np.ndarray:
     """Return each wave link centre's body abscissa at phase 0 (its joint's origin), m."""
     return np.asarray(link_geometry(robot, 0.0).centres.real, dtype=float)
@@ -236,8 +245,7 @@ def urdf(robot: Optional[RobotParams] = None) -> str:
         for suffix, parent, axis, origin, low, high in (
                 ('_x', 'base_link', '1 0 0', x, -b / 2.0, b / 2.0),
                 ('_y', f'{name}_x', '0 1 0', 0.0, -2.0 * robot.amplitude, 2.0 * robot.amplitude),
-                ('_flex', f'{name}_y', '0 1 0', 0.0, -2.0 * robot.amplitude,
-                 2.0 * robot.amplitude),
+                ('_flex', f'{name}_y', '0 1 0', 0.0, -flex_limit(robot), flex_limit(robot)),
                 ('', f'{name}_flex', '0 0 1', 0.0, -steepest, steepest)):
             lines += [f'  <joint name="{name}{suffix}" '
                       f'type="{"revolute" if suffix == "" else "prismatic"}">',
