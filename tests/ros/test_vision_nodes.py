@@ -60,8 +60,10 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes, drive_camera):
 
     camera, vision, source, executor, video, qos = nodes
     from visualization_msgs.msg import MarkerArray
+    from saw_ros.ros import tf
     got = {k: [] for k in ('pose', 'steady', 'status', 'front', 'info', 'image', 'jpeg',
-                           'markers')}
+                           'markers', 'tf')}
+    source.create_subscription(tf.TFMessage, table.TF, got['tf'].append, qos)
     source.create_subscription(MarkerArray, table.TRACKING_MARKERS, got['markers'].append, qos)
     source.create_subscription(PoseStamped, table.TRACKING_POSE, got['pose'].append, qos)
     source.create_subscription(TwistStamped, table.TRACKING_STEADY_SPEED, got['steady'].append,
@@ -107,6 +109,17 @@ def test_camera_and_vision_nodes_track_the_simulation(nodes, drive_camera):
         assert (sphere.pose.position.x, sphere.pose.position.y) == pytest.approx(
             (front.point.x, front.point.y))
         assert array.markers[0].header.stamp == front.header.stamp
+    # The estimate on /tf, surface -> base_link_tracked: the tracked pose, stamp and all.
+    wait_for(lambda: len(got['tf']) >= frames, 5.0,
+             spin=lambda t: executor.spin_once(timeout_sec=t))
+    for message, pose in zip(got['tf'][-5:], got['pose'][-5:]):
+        (moved,) = message.transforms
+        assert (moved.header.frame_id, moved.child_frame_id) == ('surface', 'base_link_tracked')
+        assert moved.header.stamp == pose.header.stamp
+        v, q, p = moved.transform.translation, moved.transform.rotation, pose.pose
+        assert (v.x, v.y, v.z) == (p.position.x, p.position.y, p.position.z)
+        assert (q.x, q.y, q.z, q.w) == pytest.approx(
+            (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w), abs=1e-12)
     last = got['pose'][-1]
     t_last = conv.stamp_ns(last.header.stamp) / 1e9
     assert last.header.frame_id == 'surface'

@@ -325,9 +325,10 @@ class VisionNode(Node):
             self._pub_pose.publish(conv.pose_cdr(float(res.position.real),
                                                  float(res.position.imag), float(res.pitch),
                                                  t_ns))
-            self._pub_tf.publish(tf.message([tf.planar(
-                frames.SURFACE, frames.TRACKED, t_ns, float(res.position.real),
-                float(res.position.imag), float(res.pitch))]))
+            self._pub_tf.publish(tf.message_cdr([(
+                frames.SURFACE, frames.TRACKED, (float(res.position.real),
+                                                 float(res.position.imag), 0.0),
+                frames.yaw_quaternion(float(res.pitch)))], t_ns))
             if res.velocity is not None:
                 self._pub_twist.publish(conv.twist_cdr(
                     float(res.velocity.real), float(res.velocity.imag), float(res.pitch_rate),
