@@ -347,7 +347,13 @@ class Renderer:
 
     def _draw_over(self, pose: RobotPose, out: np.ndarray, hidden: Iterable[str], t: float,
                    walls: Optional[WallShape]) -> np.ndarray:
-        """Draw what ``draw`` draws over the background, noting the rows drawn."""
+        """
+        Draw what ``draw`` draws over the background, noting the rows drawn.
+
+        Whatever is drawn here must note its rows (``_touch``; ``_fixed`` and ``_marker`` do it):
+        a frame handed back is restored, and the camera's JPEG encoded, only in those rows
+        (test_frames_drawn_into_recycled_frames_are_the_frames_drawn_afresh).
+        """
         self._rows = [self.camera.height, 0]
         clutter = self.scene.clutter
         if clutter:
