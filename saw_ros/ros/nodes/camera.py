@@ -1,14 +1,15 @@
 """
 The camera node: a virtual 60 fps side-view camera of the simulated robot.
 
-Subscribes /saw/pose (PoseStamped) and /saw/joint_states (JointState, ``helix`` = wave phase) and
-renders one frame for every 1/fps s of SIMULATED time, stamped with that time: frame k is drawn
-once both streams have reached t_k + exposure / 2 (poses are interpolated between samples), and
-no frame is ever skipped, however late. With bending walls the simulator also publishes their
-shape on /saw/walls (PointCloud2): each frame draws the surfaces bent as the last shape received
-stamped at or before its time says (flat while none has come, as with rigid walls, which publish
-none). Publishes /saw/camera/image_raw (sensor_msgs/Image, bgr8),
-/saw/camera/image_raw/compressed (sensor_msgs/CompressedImage, JPEG as image_transport's
+Subscribes /saw/pose (PoseStamped) and /saw/joint_states (JointState, ``helix`` = wave phase,
+``link_NN_flex`` = each wave link's deflection on its flexure, drawn along body y; a link whose
+joint is missing is rigid, at its target) and renders one frame for every 1/fps s of SIMULATED
+time, stamped with that time: frame k is drawn once both streams have reached t_k + exposure / 2
+(poses are interpolated between samples), and no frame is ever skipped, however late. With bending
+walls the simulator also publishes their shape on /saw/walls (PointCloud2): each frame draws the
+surfaces bent as the last shape received stamped at or before its time says (flat while none has
+come, as with rigid walls, which publish none). Publishes /saw/camera/image_raw (sensor_msgs/Image,
+bgr8), /saw/camera/image_raw/compressed (sensor_msgs/CompressedImage, JPEG as image_transport's
 ``compressed`` plugin: ``image_transport`` chooses raw, compressed or both) and
 /saw/camera/camera_info (sensor_msgs/CameraInfo: K, P of the rendering, no distortion), all with
 the frame's stamp. Optionally writes the frames to an .mp4 (``video_path``).
@@ -38,7 +39,7 @@ from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from saw_ros.core.params import ParameterError, Scenario, spec_entries, spec_meta
 from saw_ros.interface import message_checks as checks
-from saw_ros.interface import topics
+from saw_ros.interface import topics, urdf
 from saw_ros.ros import cdr
 from saw_ros.ros import conversions as conv
 from saw_ros.ros import tf
@@ -108,7 +109,8 @@ PARAMETERS = (
     ('frame_id', 'saw_camera', spec_meta('', 'frame_id of the images and camera info')),
     ('pose_topic', topics.POSE, spec_meta('', 'robot pose input (PoseStamped)')),
     ('joint_states_topic', topics.JOINT_STATES,
-     spec_meta('', "joint states input (JointState with 'helix')")),
+     spec_meta('', "joint states input (JointState with 'helix' and the links' "
+                   "'link_NN_flex')")),
     ('simulator_node', 'simulator', spec_meta(
         '', 'simulator node whose robot.* and conditions.gap the camera draws (its own are used '
             'while none answers, as in a replay)', read_only=True)),
@@ -190,6 +192,8 @@ class CameraNode(Node):
         self.offset = 0.0          # m the camera moved along the track (follow)
         self._poses = StampedSeries(int(KEEP * NS_PER_S))       # (x, y, theta)
         self._phases = StampedSeries(int(KEEP * NS_PER_S))      # (helix phase,)
+        # Each wave link's deflection on its flexure, at the phases' stamps (rigid: none kept).
+        self._deflections = StampedSeries(int(KEEP * NS_PER_S))
         self._walls = StampedShapes(int(KEEP * NS_PER_S), int(WALLS_STALE * NS_PER_S))
         # Stamps going back: refused, unless a stream of them follows (a replay restarted).
         # (A leap of more than the buffers hold is refused the same way: it would have the
@@ -219,7 +223,7 @@ class CameraNode(Node):
         # come in raw and only the fields used are read (a camera uses 60 of 2000 messages/s).
         self._image_cdr = cdr.ImageCdr(camera.width, camera.height, 'bgr8', camera.width * 3,
                                        self.frame_id)
-        self._helix = cdr.JointPosition('helix')
+        self._joints = self._joint_reader()
 
     def _build_topics(self, p: dict, camera: CameraModel) -> None:
         """Create the publishers, the inputs' subscriptions and the readiness report."""
@@ -304,6 +308,11 @@ class CameraNode(Node):
         if (scenario.robot, scenario.conditions.gap) != (r.robot, r.gap):
             self.renderer = Renderer(scenario.robot, scenario.conditions.gap, r.camera, r.options,
                                      r.scene)
+            if scenario.robot.wave_links != r.robot.wave_links:
+                # Other links, other flexure joints: the deflections kept were another robot's.
+                self._joints = self._joint_reader()
+                self._deflections.t.clear()
+                self._deflections.v.clear()
             self.get_logger().info(f"drawing the simulator's robot and gap "
                                    f'({1000 * scenario.conditions.gap:g} mm)')
         return True
@@ -321,20 +330,41 @@ class CameraNode(Node):
             self._restart()
         self._render_due()
 
+    def _joint_reader(self) -> cdr.JointPositions:
+        """Return a reader of the helix and the drawn robot's link_NN_flex joints, in order."""
+        return cdr.JointPositions(['helix'] + [f'{name}_flex' for name in
+                                               urdf.link_names(self.renderer.robot)])
+
     def _on_joints_raw(self, data: bytes) -> None:
-        t, phase = self._helix(data)
+        t, (phase, *flex) = self._joints(data)
         if phase is None:
             raise checks.Refused('no helix position', "no position for the joint 'helix'")
         checks.finite('helix position', (phase,))
+        # A link without its flexure joint is rigid (an older simulator, a rigid robot's bag).
+        deflection = tuple(0.0 if e is None else e for e in flex)
+        checks.finite('link deflection', deflection)
+        limit = urdf.flex_limit(self.renderer.robot)
+        if max(map(abs, deflection), default=0.0) > limit:
+            raise checks.Refused('out of range', f'a link deflection of '
+                                 f'{max(map(abs, deflection)):g} m is more than the '
+                                 f'link_NN_flex limit, {limit:g} m')
         self._phase_order.check(t)
-        self._add_phase(t, phase)
+        self._add_phase(t, phase, deflection if any(deflection) else None)
 
-    def _add_phase(self, t: int, phase) -> None:
+    def _add_phase(self, t: int, phase, deflection=None) -> None:
         self.received['joint_states'] += 1
         if phase is None:
             return
         if not self._phases.add(t, (phase,)):
             self._restart()
+            self._deflections.t.clear()
+            self._deflections.v.clear()
+        if deflection is not None and not self._deflections.t and len(self._phases.t) > 1:
+            # The links were at their targets until the sample before.
+            self._deflections.add(self._phases.t[-2], (0.0,) * len(deflection))
+        if deflection is not None or self._deflections.t:
+            # Once a link has flexed, zeros too: it goes back to its target in the frames.
+            self._deflections.add(t, deflection or (0.0,) * len(self._joints.names[1:]))
         self._render_due()
 
     def _on_walls(self, msg) -> None:
@@ -355,7 +385,7 @@ class CameraNode(Node):
         return int(round(k * NS_PER_S / self.fps))
 
     def pose_at(self, t_ns: float) -> RobotPose:
-        return pose_between(self._poses, self._phases, t_ns)
+        return pose_between(self._poses, self._phases, t_ns, self._deflections)
 
     def _render_due(self) -> None:
         if not self._poses.t or not self._phases.t:
