@@ -180,6 +180,11 @@ def specific_variants(name, base):
         yield 'positions short', changed(name=['a', 'helix'], position=[0.0])
         yield 'velocity mis-sized', changed(velocity=[1.0, 2.0, 3.0])
         yield 'effort mis-sized', changed(effort=[1.0, 2.0])
+        # A link's flexure deflection (issue 31): the camera draws it.
+        yield 'link flex NaN', changed(name=['helix', 'link_00_flex'], position=[1.0, math.nan],
+                                       velocity=[10.0, 0.0])
+        yield 'link flex 1 km', changed(name=['helix', 'link_00_flex'], position=[1.0, 1e3],
+                                        velocity=[10.0, 0.0])
     elif name == table.MOTOR_COMMANDS:
         yield 'two values', changed(data=[1.0, 2.0])
     elif name == table.CAMERA_INFO:
@@ -392,6 +397,7 @@ def test_every_node_survives_every_hostile_message(graph, capsys):
     # The failures issue 33 found, each counted as the refusal it is.
     inputs = probe.inputs
     assert inputs['camera'].get(f'{table.POSE}: not finite', 0) >= 1, inputs['camera']
+    assert inputs['camera'].get(f'{table.JOINT_STATES}: out of range', 0) >= 1, inputs['camera']
     assert inputs['vision'].get(f'{table.IMAGE}: empty image', 0) >= 1, inputs['vision']
     assert inputs['vision_compressed'].get(f'{table.IMAGE_COMPRESSED}: empty image', 0) >= 1, \
         inputs['vision_compressed']
