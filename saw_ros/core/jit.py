@@ -33,8 +33,15 @@ STALE_S = 3600.0
 
 
 def kernel_sources(folder: Path = PACKAGE) -> Iterable[Path]:
-    """Return the modules of ``folder`` that hold numba kernels, sorted."""
-    return sorted(p for p in folder.glob('*.py') if 'numba.njit' in p.read_text(encoding='utf-8'))
+    """
+    Return the modules of ``folder`` that hold numba kernels, sorted.
+
+    A kernel is declared with numba.njit or with core.dynamic_walls' ``@compiled`` (which
+    calls it): flexure.py has only the latter, and its edits went unseen before.
+    """
+    return sorted(p for p in folder.glob('*.py')
+                  if any(mark in p.read_text(encoding='utf-8')
+                         for mark in ('numba.njit', '@compiled')))
 
 
 def digest(sources: Iterable[Path]) -> str:

@@ -42,3 +42,7 @@ def test_an_edit_of_any_kernel_module_names_a_new_cache_folder(tmp_path):
     assert jit.digest(jit.kernel_sources(tmp_path)) == before
     (tmp_path / 'b.py').write_text((tmp_path / 'b.py').read_text() + '# edited\n')
     assert jit.digest(jit.kernel_sources(tmp_path)) != before
+    # Kernels declared through core.dynamic_walls' ``compiled`` count too (core.flexure's).
+    (tmp_path / 'c.py').write_text('from x import compiled\n\n@compiled\ndef f():\n    pass\n')
+    assert [p.name for p in jit.kernel_sources(tmp_path)] == ['a.py', 'b.py', 'c.py']
+    assert 'flexure.py' in [p.name for p in jit.kernel_sources()]
