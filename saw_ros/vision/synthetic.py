@@ -16,7 +16,7 @@ from typing import Callable, cast, Iterable, Iterator, List, Optional, Tuple
 
 import numpy as np
 
-from saw_ros.core import Scenario, simulate, Trajectory
+from saw_ros.core import Scenario, simulate, Simulator, Trajectory
 from saw_ros.core.metrics import run_turns, TURN
 from saw_ros.vision import compressed
 from saw_ros.vision.camera import CameraModel, FPS
@@ -36,6 +36,10 @@ class Run:
     phase: np.ndarray
     pose_at: Callable[[float], RobotPose]
     trajectory: Optional[Trajectory] = None     # the simulation itself
+    # A compliant robot's links on their flexures (Simulator.deflection): times (s) and the
+    # deflections (N, n links), m; None for rigid links.
+    deflection_t: Optional[np.ndarray] = None
+    deflection: Optional[np.ndarray] = None
 
     def frame_times(self, fps: float = FPS, start: float = 0.0) -> np.ndarray:
         n = int(math.floor((self.t[-1] - start) * fps + 1e-9))
@@ -49,13 +53,61 @@ class Run:
                      / span)
 
 
+DEFLECTION_PERIOD = 1e-3    # s between two samples of a compliant robot's link deflections
+
+
 def simulate_run(scenario: Scenario, duration: float) -> Run:
-    traj = simulate(scenario, duration)
+    """
+    Simulate ``scenario`` for ``duration`` s: the run and its ``pose_at`` for the renderer.
+
+    A compliant robot (flexure.stiffness > 0) is run in pieces of DEFLECTION_PERIOD, its links'
+    deflections taken after each (the same steps, so the same trajectory as one run), and its
+    frames draw them.
+    """
+    if scenario.flexure.stiffness > 0:
+        traj, deflection_t, deflection = _flexing_run(scenario, duration)
+    else:
+        traj, deflection_t, deflection = simulate(scenario, duration), None, None
     q = traj.q[:, 0]
     # The helix's own angle: a motor (motor.voltage > 0) turns it slower, and unevenly.
     phase = np.remainder(run_turns(traj), TURN)
-    pose_at = pose_interpolator(traj.t, q[:, 0], q[:, 1], q[:, 2], phase)
-    return Run(scenario, traj.t, q[:, 0], q[:, 1], q[:, 2], phase, pose_at, traj)
+    pose_at = pose_interpolator(traj.t, q[:, 0], q[:, 1], q[:, 2], phase, deflection_t,
+                                deflection)
+    return Run(scenario, traj.t, q[:, 0], q[:, 1], q[:, 2], phase, pose_at, traj,
+               deflection_t, deflection)
+
+
+def _flexing_run(scenario: Scenario, duration: float) \
+        -> Tuple[Trajectory, np.ndarray, np.ndarray]:
+    """Return the trajectory, and the links' deflections every DEFLECTION_PERIOD with times."""
+    sim = Simulator(scenario)
+    steps = int(round(duration / sim.dt))
+    every = max(1, int(round(DEFLECTION_PERIOD / sim.dt)))
+    pieces, times, deflections = [], [0.0], [sim.deflection[0].copy()]
+    done = 0
+    while done < steps:
+        n = min(every, steps - done)
+        piece = sim.run(n * sim.dt)
+        # Each piece starts with the state the last one ended in: that row once.
+        pieces.append(piece if not pieces else _after_first(piece))
+        done += n
+        times.append(float(piece.t[-1]))
+        deflections.append(sim.deflection[0].copy())
+
+    def joined(name: str) -> Optional[np.ndarray]:
+        parts = [getattr(p, name) for p in pieces]
+        return None if parts[0] is None else np.concatenate(parts)
+    traj = Trajectory(joined('t'), joined('q'), pieces[0].scenarios, None, None, joined('omega'),
+                      joined('torque'), joined('current'))
+    return traj, np.array(times), np.array(deflections)
+
+
+def _after_first(piece: Trajectory) -> Trajectory:
+    """Return ``piece`` without its first sample (the one the piece before ended with)."""
+    def cut(a: Optional[np.ndarray]) -> Optional[np.ndarray]:
+        return None if a is None else a[1:]
+    return Trajectory(cut(piece.t), cut(piece.q), piece.scenarios, None, None, cut(piece.omega),
+                      cut(piece.torque), cut(piece.current))
 
 
 def frames(run: Run, renderer: Renderer, times: Iterable[float],

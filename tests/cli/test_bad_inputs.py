@@ -84,6 +84,10 @@ CASES = [
     ('render {d}/out.mp4 --slope-deg 91', '--slope-deg = 91 is out of range'),
     ('render {d}/out.mp4 --noise -1', '--noise = -1 is out of range'),
     ('render', 'required: output'),
+    ('render {d}/out.mp4 --flexure-stiffness 0.5', 'flexure.stiffness = 0.5 N/m is invalid'),
+    ('render {d}/out.mp4 --flexure-stiffness 1.1e9',
+     '--flexure-stiffness = 1.1e+09 is out of range: allowed [0, 1e+09] N/m'),
+    ('render {d}/out.mp4 --flexure-damping 1001', '--flexure-damping = 1001 is out of range'),
     # track
     ('track {d}/none.mp4 --px-per-m 600', 'VIDEO {d}/none.mp4: no such video file'),
     ('track {d}/text.mp4 --px-per-m 600', 'VIDEO {d}/text.mp4: not a video OpenCV can decode'),

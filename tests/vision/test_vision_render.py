@@ -321,6 +321,32 @@ def test_pose_interpolator_interpolates_the_deflections():
     assert pose_interpolator(t, t, t, 0 * t, t)(0.5).deflection is None
 
 
+def test_a_compliant_run_renders_its_links_deflected_as_the_core_has_them():
+    """
+    simulate_run of a compliant robot: the core's trajectory bit for bit, its deflections.
+
+    (Simulator.deflection after each millisecond) in the frames, which are not the rigid ones.
+    """
+    from saw_ros.core import simulate, Simulator
+    from saw_ros.vision.synthetic import simulate_run
+    s = Scenario().with_values({'flexure.stiffness': 863.0, 'flexure.damping': 2.6})
+    run = simulate_run(s, 0.3)
+    whole = simulate(s, 0.3)
+    for name in ('t', 'q', 'omega'):
+        assert np.array_equal(getattr(run.trajectory, name), getattr(whole, name)), name
+    sim = Simulator(s)
+    sim.run(0.25)
+    k = int(np.argmin(np.abs(run.deflection_t - 0.25)))
+    assert run.deflection_t[k] == pytest.approx(0.25, abs=1e-9)
+    assert np.array_equal(run.deflection[k], sim.deflection[0])
+    assert np.abs(sim.deflection).max() > 1e-4
+    pose = run.pose_at(0.25)
+    assert np.array_equal(pose.deflection, sim.deflection[0])
+    r = Renderer(s.robot, s.conditions.gap, CameraModel(center_x=0.0))
+    assert not np.array_equal(r.render(pose), r.render(pose._replace(deflection=None)))
+    assert simulate_run(Scenario(), 0.05).pose_at(0.02).deflection is None
+
+
 def test_stamped_shapes_give_the_last_recent_shape_at_or_before_a_time():
     ms = 1_000_000
     shapes = StampedShapes(keep_ns=2000 * ms, stale_ns=250 * ms)

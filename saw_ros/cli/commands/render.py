@@ -3,6 +3,8 @@ Simulate a run and render it, as the camera node would, to an .mp4 you can watch
 
 Example: saw-ros render run.mp4 --duration 6 --slope-deg 10 --noise 10 --exposure 0.0167
 then:    saw-ros track run.mp4 --px-per-m 1200 --slope-deg 10
+A compliant robot (docs/compliant_robot.md), its links drawn deflected on their flexures:
+         saw-ros render compliant.mp4 --flexure-stiffness 863 --flexure-damping 2.6
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ from typing import Optional
 from saw_ros.cli.checks import number, output_file, spec_number, VIDEO_SUFFIXES
 from saw_ros.cli.errors import UserError
 from saw_ros.core import Scenario
-from saw_ros.core.params import ConditionParams, spec_entries
+from saw_ros.core.params import ConditionParams, FlexureParams, spec_entries
 from saw_ros.vision.camera import CameraModel, FPS
 from saw_ros.vision.frames import Renderer, RenderOptions
 from saw_ros.vision.synthetic import simulate_run
@@ -42,6 +44,8 @@ def add_arguments(p):
     p.add_argument('--slope-deg', type=float, default=0.0, help='slope of the surfaces, deg')
     spec_option(p, ConditionParams, 'gap')
     spec_option(p, ConditionParams, 'frequency')
+    spec_option(p, FlexureParams, 'stiffness', '--flexure-stiffness')
+    spec_option(p, FlexureParams, 'damping', '--flexure-damping')
     p.add_argument('--fps', type=float, default=FPS, help=f'frames per second ({FPS:g})')
     spec_option(p, CameraModel, 'scale', '--px-per-m')
     spec_option(p, CameraModel, 'width')
@@ -51,6 +55,8 @@ def add_arguments(p):
 
 
 SPEC_FLAGS = ((ConditionParams, 'gap', '--gap'), (ConditionParams, 'frequency', '--frequency'),
+              (FlexureParams, 'stiffness', '--flexure-stiffness'),
+              (FlexureParams, 'damping', '--flexure-damping'),
               (CameraModel, 'scale', '--px-per-m'), (CameraModel, 'width', '--width'),
               (CameraModel, 'height', '--height'), (RenderOptions, 'noise', '--noise'),
               (RenderOptions, 'exposure', '--exposure'),
@@ -73,7 +79,9 @@ def run(args):
     check_arguments(args)
     scenario = Scenario().with_values({'conditions.slope': math.radians(args.slope_deg),
                                        'conditions.gap': args.gap,
-                                       'conditions.frequency': args.frequency})
+                                       'conditions.frequency': args.frequency,
+                                       'flexure.stiffness': args.stiffness,
+                                       'flexure.damping': args.damping})
     try:
         camera = CameraModel(width=args.width, height=args.height, scale=args.scale,
                              slope=math.radians(args.slope_deg), center_y=args.gap / 2)
