@@ -6,6 +6,9 @@ JPEG file's bytes; a bgr8 frame goes out as 'bgr8; jpeg compressed bgr8'. Pure (
 """
 from __future__ import annotations
 
+import re
+from typing import List, Optional
+
 import cv2
 import numpy as np
 
@@ -62,14 +65,9 @@ class BandJpeg:
         while data[at + 1] != 0xDA:             # to the start of scan
             at += 2 + int.from_bytes(data[at + 2:at + 4], 'big')
         start = at + 2 + int.from_bytes(data[at + 2:at + 4], 'big')
-        body = data[start:-2]                   # (the last two bytes: end of image)
-        segments, begin, at = [], 0, body.find(b'\xff')
-        while at != -1:
-            if 0xD0 <= body[at + 1] <= 0xD7:    # a restart marker (else 0xFF 0x00: a byte)
-                segments.append(body[begin:at])
-                begin = at + 2
-            at = body.find(b'\xff', at + 2)
-        segments.append(body[begin:])
+        segments = _intervals(data[start:-2])   # (the last two bytes: end of image)
+        if segments is None:
+            raise ValueError('a marker in the scan other than restart markers')
         return data[:start], segments
 
     def encode(self, frame: np.ndarray, first: int, end: int) -> bytes:
@@ -164,6 +162,28 @@ class JpegStream:
         return image
 
 
+_MARKER = re.compile(b'\xff[^\x00]')
+
+
+def _intervals(scan: bytes) -> Optional[List[bytes]]:
+    """
+    Return a scan's entropy-coded bytes cut at its restart markers (None: it holds another).
+
+    In the coded bytes 0xFF is followed by 0x00 (a byte of data) or by a marker. One regular
+    expression finds the markers, not a Python loop over the 0xFF bytes: a 1280x720 frame at
+    quality 90 holds 1200 of them, 0.15 ms of Python.
+    """
+    segments, begin = [], 0
+    for marker in _MARKER.finditer(scan):
+        at = marker.start()
+        if not 0xD0 <= scan[at + 1] <= 0xD7:
+            return None
+        segments.append(scan[begin:at])
+        begin = at + 2
+    segments.append(scan[begin:])
+    return segments
+
+
 def _rows_of(data: bytes):
     """
     Return (headers, each block row's entropy-coded bytes, offset of the height, block rows' px).
@@ -200,17 +220,8 @@ def _rows_of(data: bytes):
         height = int.from_bytes(data[height_at:height_at + 2], 'big')
         if data[-2:] != b'\xff\xd9' or not height:
             return None
-        body = data[start:-2]
-        rows, begin, at = [], 0, body.find(b'\xff')
-        while at != -1:
-            if 0xD0 <= body[at + 1] <= 0xD7:
-                rows.append(body[begin:at])
-                begin = at + 2
-            elif body[at + 1] != 0:
-                return None                          # another marker: a second scan...
-            at = body.find(b'\xff', at + 2)
-        rows.append(body[begin:])
-        if len(rows) != -(-height // mcu):
+        rows = _intervals(data[start:-2])
+        if rows is None or len(rows) != -(-height // mcu):
             return None
         return data[:start], rows, height_at, mcu
     except IndexError:
