@@ -10,13 +10,14 @@ and decodes them as it decodes foxglove_bridge's. The server is the Foxglove SDK
 
 - Raw CDR passed through: each topic is subscribed ``raw=True`` and its bytes logged on the
   channel as they came; nothing is deserialised.
-- The simulator's streams (/clock and the 'stream' topics: 5 000 messages a second at real
-  time) are taken in batches every BATCH_PERIOD by a timer, from subscriptions of a second node
-  that no executor spins, so that no message costs an executor wake-up and a Python callback
-  of its own; the other topics (60 Hz and slower, and the commands whose echo a client may
-  time) get a callback each. 11-12 us of the bridge's CPU a forwarded message instead of 21-33
-  (docs/measurements.md, issue 34 part C). The log time is the SDK's clock when it takes the
-  message, as ``time.time_ns()`` was.
+- Taken in batches: every topic but the commands is subscribed on a second node that no
+  executor spins (``foxglove_bridge_intake``), and a timer takes what each subscription holds
+  every BATCH_PERIOD, so that no message costs an executor wake-up and a Python callback of its
+  own, and the SDK sends a batch per wake-up of its own threads. A client subscribed to
+  everything at real time (5 800 messages a second, 5 000 of them the simulator's 1 kHz
+  streams) cost the bridge 0.12 of a core, now 0.09 (docs/measurements.md, issue 34 part C).
+  A message reaches the clients up to BATCH_PERIOD later; its log time is the SDK's clock when
+  the bridge hands it over. The commands (a client's own echo) keep a callback each.
 - A topic is subscribed only while at least one client subscribes to its channel (as
   foxglove_bridge does): an idle bridge takes no message. Latched topics are subscribed afresh
   for each new client, so that it gets the last message too.
@@ -63,10 +64,9 @@ NOT_SERVED = (topics.IMAGE,)
 COMMAND_TOPICS = tuple(t.name for t in topics.TOPICS if t.qos == 'command')
 WARN_EVERY = 5.0        # s of wall time between two warnings about refused client messages
 POLL_PERIOD = 0.05      # s between two looks at the clients' (un)subscriptions
-# s between two takes of the batched topics' queues (INPUT_DEPTH = 1 s of a 1 kHz stream): a
-# viewer drawing at 60 Hz sees no difference; 20 ms saved little more.
+# s between two takes of the subscriptions' queues (INPUT_DEPTH = 1 s of a 1 kHz stream, 30
+# frames of the camera's): a viewer drawing at 60 Hz sees no difference; 20 ms saved little more.
 BATCH_PERIOD = 0.01
-BATCHED_QOS = ('stream', 'clock')
 
 YAML_HEADER = """\
 Parameters of the saw_ros Foxglove bridge (every topic over the Foxglove WebSocket protocol):
@@ -157,15 +157,15 @@ class FoxgloveBridge(Node):
                 message_class(clock.type), clock.name, self._clock_came, profile(clock.qos),
                 raw=True)
         self.create_timer(POLL_PERIOD, self._apply_requests)
-        # The batched topics' subscriptions: on a node no executor spins (an executor would wake
-        # for each message). Not the command line's node name or remappings: the topics are the
+        # The batched subscriptions: on a node no executor spins (an executor would wake for
+        # each message). Not the command line's node name or remappings: the topics are the
         # table's, as the channels are.
         self.intake = Node('foxglove_bridge_intake', context=self.context,
                            use_global_arguments=False, enable_rosout=False,
                            start_parameter_services=False)
         self.batched: Dict[str, Tuple[Any, Any, Any]] = {}    # topic -> handle, type, log
         self._batch_timer = self.create_timer(BATCH_PERIOD, self._take_batches)
-        self._batch_timer.cancel()          # running only while a batched topic is subscribed
+        self._batch_timer.cancel()          # running only while a client subscribes
         self.get_logger().info(
             f'Foxglove WebSocket on {self.url}: {len(self.channels)} topics; clients may '
             f'publish on {", ".join(COMMAND_TOPICS)} only (Foxglove: Open connection > Foxglove '
@@ -209,7 +209,7 @@ class FoxgloveBridge(Node):
         entry = self.entries[name]
         channel = self.channels[name]
         qos = profile(entry.qos)
-        if entry.qos in BATCHED_QOS:
+        if entry.qos in ('stream', 'clock'):
             qos = with_depth(qos, INPUT_DEPTH)
 
         # The SDK's own log call (Channel.log checks the payload's type and the encoding in
@@ -219,7 +219,7 @@ class FoxgloveBridge(Node):
         # No QoS event handlers: one Python object less per subscription in every executor
         # round (the recorder's reason, docs/measurements.md).
         no_events = SubscriptionEventCallbacks(use_default_callbacks=False)
-        if entry.qos in BATCHED_QOS:
+        if entry.qos != 'command':
             subscription = self.intake.create_subscription(
                 msg_type, name, _never_called, qos, raw=True, event_callbacks=no_events)
             self.batched[name] = (subscription.handle, msg_type, log)
