@@ -36,7 +36,8 @@ from saw_ros.core.drive import FREQUENCY_LIMIT, PhaseProfile, VOLTAGE_LIMIT
 from saw_ros.core.dynamic_walls import dynamic, DynamicWalls, load_walls, ON, SETTINGS
 from saw_ros.core.dynamic_walls import swing_walls, TABLE
 from saw_ros.core.flexure import DEFLECTION as FLEX_DEFLECTION, flex_advance, flex_links
-from saw_ros.core.flexure import FLEX_ON, flex_restore, FLEX_ROWS, flexure_constants
+from saw_ros.core.flexure import FLEX_ON, flex_restore, FLEX_ROWS, flex_walls, FLEX_WORK_ROWS
+from saw_ros.core.flexure import flexure_constants
 from saw_ros.core.flexure import RATE as FLEX_RATE
 from saw_ros.core.jit import CACHE
 from saw_ros.core.kinematics import check_no_interference, place_tips, TipRateTable, TipTable
@@ -176,7 +177,8 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
     solved by ``bend_walls``.
 
     With link flexures (core.flexure, ``flex[s]`` on): the links' deflections enter the depths
-    the law sees, and the body gets the flexures' reactions.
+    the law sees, and the body gets the flexures' reactions; with bending walls too (either
+    kind), ``flex_walls`` solves the walls and the links together.
 
     Records the state into ``trace`` (and the tips' forces into ``trace_tips`` when it has
     rows) after every step whose number since the run's start (``first`` + k) is a multiple of
@@ -189,15 +191,20 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
     fc, fs = flex[s], flex_state[s]
     flexing = fc[FLEX_ON] > 0.0
     n = tips.shape[2] // 2
-    work = np.empty((WORK_ROWS + 2 * n, n)) if bending else np.empty((0, 0))
+    work = np.empty((0, 0))
+    if bending:
+        work = (np.empty((FLEX_WORK_ROWS + 4 * n, 2 * n)) if flexing else
+                np.empty((WORK_ROWS + 2 * n, n)))
     b[STATUS] = 0.0
     for k in range(1, steps + 1):
         place_tips(table, scale, side, b, b[PHASE], c[GAP], t)
-        if swinging:
+        if bending and flexing:
+            flex_walls(law[s], wc, wall_state[s], wall_modes[s], swinging, fc, fs, t, work)
+        elif swinging:
             swing_walls(law[s], wc, wall_state[s], wall_modes[s], t, work)
         elif bending:
             bend_walls(law[s], wc, wall_state[s], t, work)
-        if flexing:
+        elif flexing:
             flex_links(law[s], fc, fs, t)
         press_tips(law[s], t)
         if swinging:
@@ -419,10 +426,6 @@ class Simulator:
             was_on: np.ndarray = self._flex[:, FLEX_ON] > 0.0
             self._flex_state[(flex[:, FLEX_ON] > 0.0) & ~was_on] = 0.0
         self._flex: np.ndarray = flex
-        if self.walls is not None and (self._flex[:, FLEX_ON] > 0.0).any():
-            raise ParameterError('flexure.stiffness > 0 with bending walls (surface.'
-                                 'foundation_stiffness > 0): the flexures are not yet coupled '
-                                 "into the walls' solve; use rigid walls or rigid links")
         gap = np.array([[s.conditions.gap] for s in scenarios])
         self._gap = gap[:, 0]
         side = self.table.side

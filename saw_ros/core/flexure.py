@@ -36,9 +36,15 @@ from typing import Sequence, Tuple
 
 import numpy as np
 
-from saw_ros.core.contact import DEPTH, EXPONENT, KN_HALF, KN_MEAN, KN_RATE, NORMAL, SEEN
-from saw_ros.core.dynamic_walls import compiled, mode_propagator, oscillator_step
+from saw_ros.core.contact import DEPTH, EXPONENT, KN_HALF, KN_MEAN, KN_RATE, NORMAL
+from saw_ros.core.contact import PENETRATION, SEEN, X
+from saw_ros.core.dynamic_walls import _free_at, _free_modes, _tip_table, compiled, HELD
+from saw_ros.core.dynamic_walls import mode_propagator, oscillator_step, STATE_ROWS, TABLE
+from saw_ros.core.dynamic_walls import WALL_STATE
 from saw_ros.core.params import FlexureParams, SurfaceParams
+from saw_ros.core.walls import balance_wall, BETA, CHOSEN, close_step, fill_wall, GAIN, HALF
+from saw_ros.core.walls import ITSELF, LOADS, PATCH_IM, PATCH_RE, REACH, retire_solved, SOLVED
+from saw_ros.core.walls import SOLVED_BEFORE, TOLERANCE_COLUMN
 
 # The link solve (balance_links): Newton safeguarded by bisection on each link's deflection,
 # to this tolerance (m), a thousandth of core.walls' TOLERANCE; a few iterations a link.
@@ -331,3 +337,223 @@ def replay_links(bottom: np.ndarray, top: np.ndarray, before_bottom: np.ndarray,
         _advance(fb - ft, k, c, mass, dt, phi, load, e, rate, out)
         reaction[step] = out
         deflection[step] = e
+
+
+# The scratch of ``flex_walls`` (rows of (FLEX_WORK_ROWS + 4 n, 2 n)), before its two 2n x 2n
+# matrices: rows 0-2 balance_wall's, then the links' free deflections, where each link's bottom
+# and top tips sit in the solve (-1: not in it), whether a tip is solved for the first time,
+# the tips' abscissae, depths, the law's last depths, the solve's unknowns and forces, and each
+# link's net step-end load.
+FREE_ROW, BOTTOM_AT, TOP_AT, FRESH, X_ROW, DEPTH_ROW, BEFORE_ROW, GIVE, FORCE, NET = range(3, 13)
+FLEX_WORK_ROWS = 13
+
+
+@compiled
+def flex_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np.ndarray,
+               swinging: bool, constants: np.ndarray, flex_state: np.ndarray,
+               tips: np.ndarray, work: np.ndarray) -> None:
+    """
+    Solve one scenario's two bending walls and its links' flexures together (kernel).
+
+    A tip's depth is its penetration into the rigid wall less the wall's deflection there less
+    its link's flexure deflection (e, + y: SEEN - e for a bottom tip, SEEN + e for a top one).
+    The flexure is a compliance in series with the wall: e = free + C (F_bottom - F_top)
+    (``_ramp``, ``Flexures.compliance``), so the tips' total give u (the wall's deflection plus
+    the loaded part of e, signed as it deepens the tip's contact) is u = (G + C B) F, B the
+    links' +1 on each tip of the solve and -1 between the two tips of one link. One Newton on
+    both walls at once (core.walls.balance_wall) on that compliance, the walls' blocks
+    (core.walls.fill_wall; for walls with mass less their held modes, as
+    core.dynamic_walls.swing_walls) joined only where a link has both tips in the solve: the
+    contact law, the walls and the flexures agree to the walls' TOLERANCE at the step's end.
+
+    The tips solved for: those within the walls' reach of their wall once their link's free
+    deflection (and, for walls with mass, the wall's free motion) is counted; after the solve a
+    tip left out whose link's loaded deflection brought it within reach joins them and the
+    solve repeats, so that no tip left out touches. ``modes``: the walls' modes (used where
+    ``swinging``), ``constants``, ``flex_state``: the flexures' (FLEX_FIELDS, FLEX_ROWS x n);
+    ``work`` a scratch (FLEX_WORK_ROWS + 4 n, 2 n).
+    """
+    n = state.shape[2]
+    reach = walls[REACH]
+    c_flex = constants[FLEX_COMPLIANCE]
+    phi = constants[FLEX_PHI:FLEX_PHI + 4]
+    free, bottom_at, top_at = work[FREE_ROW], work[BOTTOM_AT], work[TOP_AT]
+    fresh, x, depth, before = work[FRESH], work[X_ROW], work[DEPTH_ROW], work[BEFORE_ROW]
+    u, force, net = work[GIVE], work[FORCE], work[NET]
+    g = work[FLEX_WORK_ROWS:FLEX_WORK_ROWS + 2 * n]
+    jacobian = work[FLEX_WORK_ROWS + 2 * n:]
+    tabled = (modes.shape[0] - TABLE) // 2
+    count_modes = modes.shape[1]
+    largest_free = 0.0
+    for i in range(n):
+        free[i], _ = _ramp(flex_state[DEFLECTION, i], flex_state[RATE, i], flex_state[LOAD, i],
+                           0.0, constants[FLEX_STIFFNESS], constants[FLEX_DAMPING],
+                           constants[FLEX_DT], phi)
+        largest_free = max(largest_free, abs(free[i]))
+        bottom_at[i] = top_at[i] = -1.0
+    # The walls' own motion over the step (walls with mass): SEEN = PENETRATION - free
+    # correction at every tip it and the free deflections can bring within reach.
+    # (The modes' scratch holds one wall's free modes at a time: ``freed`` says whose.)
+    bounds = np.zeros(2)
+    freed = -1
+    if swinging:
+        for wall in range(2):
+            bounds[wall] = _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
+            freed = wall
+            for p in range(wall * n, wall * n + n):
+                if tips[PENETRATION, p] + bounds[wall] + largest_free > reach:
+                    _tip_table(modes, p, tips[X, p])
+                    tips[SEEN, p] = tips[PENETRATION, p] - _free_at(modes, p)
+    # The tips that can touch: each wall's in their order along it, bottom wall first.
+    count = 0
+    for wall in range(2):
+        sign = 1.0 - 2.0 * wall
+        for i in range(n):
+            if tips[SEEN, wall * n + i] - sign * free[i] > reach:
+                if wall == 0:
+                    bottom_at[i] = count
+                else:
+                    top_at[i] = count
+                count += 1
+    most = 0
+    all_converged = True
+    for attempt in range(2 * n + 1):
+        # The solve's tips, in order: x, depth less the free deflection, the law's last depth,
+        # and the first guess (the last two steps' wall deflections extrapolated, the last
+        # step's load on the flexure).
+        for wall in range(2):
+            sign = 1.0 - 2.0 * wall
+            at = top_at if wall else bottom_at
+            for i in range(n):
+                if at[i] < 0.0:
+                    continue
+                k, p = int(at[i]), wall * n + i
+                if swinging and tips[PENETRATION, p] + bounds[wall] + largest_free <= reach:
+                    if freed != wall:                       # joined after the solve
+                        _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
+                        freed = wall
+                    _tip_table(modes, p, tips[X, p])
+                    tips[SEEN, p] = tips[PENETRATION, p] - _free_at(modes, p)
+                x[k], before[k] = tips[X, p], tips[DEPTH, p]
+                depth[k] = tips[SEEN, p] - sign * free[i]
+                last = state[SOLVED, wall, i]
+                fresh[k] = last == 0.0
+                guess = 2.0 * last - state[SOLVED_BEFORE, wall, i] if last != 0.0 else 0.0
+                u[k] = (guess - (tips[PENETRATION, p] - tips[SEEN, p]) +
+                        sign * c_flex * flex_state[LOAD, i])
+        bottoms = 0
+        for i in range(n):
+            bottoms += bottom_at[i] >= 0.0
+        for k in range(count):
+            for j in range(count):
+                g[k, j] = 0.0
+        for wall in range(2):
+            first = bottoms if wall else 0
+            size = count - bottoms if wall else bottoms
+            if size == 0:
+                continue
+            block = g[first:first + size, first:first + size]
+            fill_wall(x[first:first + size], size, walls[BETA], walls[HALF], walls[GAIN],
+                      walls[ITSELF], walls[PATCH_RE], walls[PATCH_IM], block)
+            if swinging:
+                # Less what the held loads' modes take back (swing_walls).
+                at = top_at if wall else bottom_at
+                for i in range(n):
+                    if at[i] < 0.0:
+                        continue
+                    a, pa = int(at[i]), wall * n + i
+                    for j in range(i + 1):
+                        if at[j] < 0.0:
+                            continue
+                        b, pb = int(at[j]), wall * n + j
+                        total = 0.0
+                        for m in range(count_modes):
+                            total += modes[HELD, m] * (
+                                modes[TABLE + pa, m] * modes[TABLE + pb, m] +
+                                modes[TABLE + tabled + pa, m] * modes[TABLE + tabled + pb, m])
+                        g[a, b] -= total
+                        if b != a:
+                            g[b, a] -= total
+        # The flexures in series: C on each tip, -C between a link's two tips.
+        for i in range(n):
+            if bottom_at[i] >= 0.0:
+                g[int(bottom_at[i]), int(bottom_at[i])] += c_flex
+            if top_at[i] >= 0.0:
+                g[int(top_at[i]), int(top_at[i])] += c_flex
+            if bottom_at[i] >= 0.0 and top_at[i] >= 0.0:
+                g[int(bottom_at[i]), int(top_at[i])] -= c_flex
+                g[int(top_at[i]), int(bottom_at[i])] -= c_flex
+        # The convergence test's scale: p times the largest of twice a tip's own compliance
+        # and a row's sum of |G| (swing_walls').
+        scale = 0.0
+        for k in range(count):
+            row = 0.0
+            for j in range(count):
+                row += abs(g[k, j])
+            scale = max(scale, 2.0 * g[k, k], row)
+        scale *= law[EXPONENT]
+        if count > 0:
+            iterations, converged = balance_wall(depth, u, g, before, count, law, scale,
+                                                 walls[TOLERANCE_COLUMN], work, jacobian,
+                                                 force)
+            most = max(most, iterations)
+            all_converged = all_converged and converged
+        # The law's forces where the solve ended (balance_wall leaves those before its last
+        # step), so that the walls' loads, the links' and the law's are one set.
+        for k in range(count):
+            delta = max(depth[k] - u[k], 0.0)
+            change = (delta - before[k]) * law[KN_RATE]
+            factor = max(min(change, law[KN_HALF]), -law[KN_HALF]) + law[KN_MEAN]
+            root = math.sqrt(delta) if law[EXPONENT] == 1.5 else delta ** (law[EXPONENT] - 1.0)
+            force[k] = factor * (root * delta)
+        # Each link's net load and deflection; a tip left out that it brings within reach
+        # joins the solve (once: it stays in).
+        joined = False
+        for i in range(n):
+            net[i] = (force[int(bottom_at[i])] if bottom_at[i] >= 0.0 else 0.0) - \
+                (force[int(top_at[i])] if top_at[i] >= 0.0 else 0.0)
+            e = free[i] + c_flex * net[i]
+            if bottom_at[i] < 0.0 and tips[SEEN, i] - e > reach:
+                bottom_at[i] = 0.5          # placed below, after the bottom tips before it
+                joined = True
+            if top_at[i] < 0.0 and tips[SEEN, n + i] + e > reach:
+                top_at[i] = 0.5
+                joined = True
+        if not joined:
+            break
+        count = 0
+        for wall in range(2):
+            at = top_at if wall else bottom_at
+            for i in range(n):
+                if at[i] >= 0.0:
+                    at[i] = count
+                    count += 1
+    # The walls' bookkeeping (bend_walls, swing_walls) and the depths the law sees.
+    largest = -np.inf
+    for wall in range(2):
+        sign = 1.0 - 2.0 * wall
+        at = top_at if wall else bottom_at
+        solved = 0
+        for i in range(n):
+            solved += at[i] >= 0.0
+        retire_solved(walls, state, wall, solved)
+        solved = 0
+        for i in range(n):
+            p = wall * n + i
+            e = free[i] + c_flex * net[i]
+            if at[i] < 0.0:
+                tips[SEEN, p] -= sign * e
+                continue
+            k = int(at[i])
+            # The wall's deflection: the give less the flexure's loaded part, plus its free
+            # correction (walls with mass).
+            total = u[k] - sign * c_flex * net[i] + tips[PENETRATION, p] - tips[SEEN, p]
+            state[CHOSEN, wall, solved] = i
+            solved += 1
+            if fresh[k] > 0.0:
+                state[SOLVED_BEFORE, wall, i] = total   # solved for the first time: no trend
+            state[SOLVED, wall, i] = total
+            state[LOADS, wall, i] = force[k]
+            tips[SEEN, p] = depth[k] - u[k]
+            largest = max(largest, total)
+    close_step(walls, largest, most, all_converged)

@@ -214,12 +214,6 @@ def test_the_deflections_and_the_tips_the_simulator_shows_are_the_flexures():
     assert not sim.deflection.any() and sim._flex_state[0, 0].any()
 
 
-def test_flexures_with_bending_walls_are_refused():
-    with pytest.raises(ParameterError, match='not yet coupled'):
-        Simulator(Scenario().with_values({'flexure.stiffness': 2000.0,
-                                          'surface.foundation_stiffness': 1.5e5}))
-
-
 def test_flexures_switched_on_during_a_run_start_at_rest():
     scenario = Scenario().with_values({'flexure.stiffness': TPU.stiffness})
     sim = Simulator(scenario)

@@ -43,3 +43,18 @@ def test_the_uncompiled_walls_with_mass_step_as_the_compiled_ones():
     uncompiled = np.array(json.loads(out.stdout.splitlines()[-1]))
     assert np.abs(compiled.q[-1, 0, 1] - compiled.q[0, 0, 1]) > 1e-3      # it landed
     np.testing.assert_allclose(uncompiled, compiled.q[-1], rtol=0.0, atol=1e-9)
+
+
+def test_the_uncompiled_flexures_on_bending_walls_step_as_the_compiled_ones():
+    """Flexures on the sheet (driven, on a slope) and on the tissue with mass (flex_walls)."""
+    values = [{**VALUES[1], 'flexure.stiffness': 2000.0, 'flexure.damping': 0.5},
+              {'surface.foundation_stiffness': 9e3, 'surface.bending_stiffness': 1.2e-5,
+               'walls.mass': 0.13, 'walls.damping': 6.8, 'flexure.stiffness': 863.0,
+               'flexure.damping': 2.6}]
+    compiled = simulate([Scenario().with_values(v) for v in values], DURATION)
+    env = dict(os.environ, NUMBA_DISABLE_JIT='1')
+    out = subprocess.run([sys.executable, '-c', RUN, json.dumps(values)], env=env, check=True,
+                         capture_output=True, text=True, timeout=300)
+    uncompiled = np.array(json.loads(out.stdout.splitlines()[-1]))
+    assert np.ptp(compiled.q[:, :, 1], axis=0).min() > 5e-4             # both robots moved
+    np.testing.assert_allclose(uncompiled, compiled.q[-1], rtol=0.0, atol=1e-9)
