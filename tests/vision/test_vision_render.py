@@ -189,7 +189,8 @@ def test_frames_drawn_into_recycled_frames_are_the_frames_drawn_afresh():
     Draw into frames handed back, as the camera node does: the frames of one that never does.
 
     Only the rows drawn on are restored; bit for bit all the same through jumps across the
-    picture, a 20 deg slope, bent walls that come and go, and three frames in flight.
+    picture, a 20 deg slope, bent walls that come and go, deflected links, and three frames in
+    flight.
     """
     s = Scenario()
     along = np.linspace(-0.5, 1.0, 301)
@@ -198,6 +199,9 @@ def test_frames_drawn_into_recycled_frames_are_the_frames_drawn_afresh():
     poses = [POSE._replace(x=x, theta=th, phase=ph) for x, th, ph in
              ((0.0, 0.0, 0.3), (0.45, 0.02, 2.0), (-0.3, -0.03, 4.0), (0.05, 0.0, 1.0),
               (0.6, 0.01, 5.5), (0.0, 0.0, 0.3), (0.2, -0.02, 3.3), (0.21, -0.02, 3.4))]
+    # (and links moved on their flexures, 3 mm at most)
+    poses[6] = poses[6]._replace(deflection=tuple(
+        0.003 * math.sin(k) for k in range(s.robot.wave_links)))
     walls = [None, (along, bent), None, (along, bent), (along, bent), None, None, None]
     for cam in (CameraModel(), CameraModel(slope=math.radians(20))):
         recycled = Renderer(s.robot, s.conditions.gap, cam)
