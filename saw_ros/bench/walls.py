@@ -18,12 +18,16 @@ Issue 23 figures: walls that bend (core.walls).
   ``Simulator.run`` with rigid walls and with the silicone sheet's, the best of runs taken in
   turn; ``bending_cpu_speed_ratio`` the first over the second: the speed ratio a loaded machine
   does not move (its wall-clock figures wait for a core; CPU time does not count the wait).
+- ``compliant_bending_step_cpu_ns``: the same with the printed TPU flexures (bench.compliant's
+  TPU) on the silicone sheet (core.flexure.flex_walls: walls and links in one solve), taken in
+  the same turns; ``compliant_bending_cpu_speed_ratio`` the rigid step's CPU time over it.
 """
 import math
 import time
 
 import numpy as np
 
+from saw_ros.bench.compliant import TPU
 from saw_ros.bench.core import batch_scenarios, run_rate
 from saw_ros.core import Scenario, Simulator
 from saw_ros.core.dynamics import simulate
@@ -33,7 +37,8 @@ from saw_ros.core.walls import Walls
 KEYS = ('bending_point_load_error_pct', 'bending_fd_error_pct', 'core_steps_per_s_bending',
         'batch_scenario_steps_per_s_bending', 'bending_core_speed_ratio',
         'bending_batch_speed_ratio', 'rigid_limit_max_dev', 'rigid_step_cpu_ns',
-        'bending_step_cpu_ns', 'bending_cpu_speed_ratio')
+        'bending_step_cpu_ns', 'bending_cpu_speed_ratio', 'compliant_bending_step_cpu_ns',
+        'compliant_bending_cpu_speed_ratio')
 SHEET = {'surface.foundation_stiffness': 1.5e5, 'surface.bending_stiffness': 6.25e-4}
 STIFFEST = {'surface.foundation_stiffness': 1e10, 'surface.bending_stiffness': 1e4}
 
@@ -97,9 +102,9 @@ def run(quick=False):
         a.step()
         b.step()
         deviation = max(deviation, float(np.abs(a.q[:3] - b.q[:3]).max()))
-    rigid_ns, bending_ns = step_cpu_ns([Simulator(Scenario()),
-                                        Simulator(Scenario().with_values(SHEET))],
-                                       0.3 if quick else 1.0)
+    rigid_ns, bending_ns, compliant_ns = step_cpu_ns(
+        [Simulator(Scenario()), Simulator(Scenario().with_values(SHEET)),
+         Simulator(Scenario().with_values(dict(SHEET, **TPU)))], 0.3 if quick else 1.0)
     return {'bending_point_load_error_pct': round(point_load_error(), 6),
             'bending_fd_error_pct': round(finite_difference_error(), 6),
             'core_steps_per_s_bending': round(bending),
@@ -108,4 +113,6 @@ def run(quick=False):
             'bending_batch_speed_ratio': round(bending_batch / rigid_batch, 3),
             'rigid_limit_max_dev': float(f'{deviation:.3g}'),
             'rigid_step_cpu_ns': round(rigid_ns), 'bending_step_cpu_ns': round(bending_ns),
-            'bending_cpu_speed_ratio': round(rigid_ns / bending_ns, 3)}
+            'bending_cpu_speed_ratio': round(rigid_ns / bending_ns, 3),
+            'compliant_bending_step_cpu_ns': round(compliant_ns),
+            'compliant_bending_cpu_speed_ratio': round(rigid_ns / compliant_ns, 3)}

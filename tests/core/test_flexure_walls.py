@@ -4,11 +4,15 @@ import math
 import numpy as np
 import pytest
 
-from saw_ros.core.contact import NORMAL
+from saw_ros.core.contact import EXPONENT, KN_HALF, KN_MEAN, KN_RATE, LAW_FIELDS, NORMAL
+from saw_ros.core.contact import PENETRATION, SEEN, TIP_FIELDS
+from saw_ros.core.dynamic_walls import TABLE
 from saw_ros.core.dynamics import Simulator
-from saw_ros.core.params import Scenario
+from saw_ros.core.flexure import balance_link, contact_law, FLEX_COMPLIANCE, flex_walls
+from saw_ros.core.flexure import FLEX_ROWS, FLEX_WORK_ROWS, flexure_constants
+from saw_ros.core.params import FlexureParams, Scenario
 from saw_ros.core.walls import CHOSEN, GAIN, ITSELF, PATCH_IM, PATCH_RE, SOLVED, SOLVED_COUNT
-from saw_ros.core.walls import TOLERANCE_COLUMN
+from saw_ros.core.walls import LOADS, TOLERANCE_COLUMN, Walls
 
 # The silicone sheet and the stiffest walls the ranges allow (saw_ros/bench/walls.py's SHEET,
 # STIFFEST), the tissue with its mass (docs/walls.md).
@@ -109,3 +113,42 @@ def test_a_compliant_robot_crawls_between_bending_walls():
     assert (np.abs(sim.deflection).max(axis=1) > 1e-4).all()
     assert (sim.walls.largest > 1e-4).all()
     assert math.isfinite(float(run.q[-1].sum()))
+
+
+@pytest.mark.parametrize('yielding', [False, True], ids=['unyielding', 'sheet'])
+def test_a_link_pressed_into_both_walls_balances_its_flexure_and_both_walls(yielding):
+    """
+    One link, both tips in their walls (the flexure's -C between them): the kernel alone.
+
+    Unyielding walls (their compliance taken out): the rigid walls' link solve
+    (flexure.balance_link). The sheet: each tip's depth is its penetration less its wall's
+    give under its own load less the link's deflection C (F_bottom - F_top), the law's forces.
+    """
+    scenario = Scenario().with_values(SHEET)
+    walls = Walls([scenario], np.array([-1.0, 1.0]))
+    constants = walls.constants[0]
+    if not yielding:
+        constants[[GAIN, ITSELF, PATCH_RE, PATCH_IM]] = 0.0
+    constants[TOLERANCE_COLUMN] = 1e-14
+    law4 = contact_law(scenario.surface, 1e-3)
+    law = np.zeros(LAW_FIELDS)
+    law[[KN_MEAN, KN_HALF, KN_RATE, EXPONENT]] = law4
+    flex = flexure_constants([FlexureParams(stiffness=2000.0, damping=0.5, link_mass=0.004)],
+                             1e-3)[0]
+    tips = np.zeros((TIP_FIELDS, 2))
+    tips[PENETRATION] = tips[SEEN] = [2e-3, 3e-3]
+    flex_walls(law, constants, walls.state[0], np.zeros((TABLE + 4, 1)), False, flex,
+               np.zeros((FLEX_ROWS, 1)), tips, np.empty((FLEX_WORK_ROWS + 4, 2)))
+    assert [constants[SOLVED_COUNT], constants[SOLVED_COUNT + 1]] == [1, 1]
+    force = walls.state[0, LOADS, :, 0]                            # bottom, top
+    c = flex[FLEX_COMPLIANCE]
+    e = c * (force[0] - force[1])
+    give = constants[ITSELF] * force
+    np.testing.assert_allclose(tips[SEEN], [2e-3 - give[0] - e, 3e-3 - give[1] + e],
+                               rtol=0, atol=1e-15)
+    kn, p = law4[0] + law4[1], law4[3]
+    np.testing.assert_allclose(force, kn * tips[SEEN] ** p, rtol=1e-12)
+    assert force.min() > 0.1 and abs(e) > 1e-5
+    if not yielding:
+        e_link, fb, ft = balance_link(2e-3, 3e-3, 0.0, 0.0, 0.0, c, law4)
+        np.testing.assert_allclose([e, force[0], force[1]], [e_link, fb, ft], rtol=1e-9)
