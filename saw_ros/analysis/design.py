@@ -18,8 +18,8 @@ gives
 A design the model cannot run is reported as such, with the reason, never as numbers: links
 that collide over a wave cycle (core.kinematics), a geometry the Scenario refuses (links that do
 not fit the body, a robot too tall for the gap), a motor that stalls, a robot that does not
-advance, a run that left the model (DivergenceError), and flexures on bending walls, which the
-compiled step does not couple yet.
+advance, and a run that left the model (DivergenceError). Flexures run on every wall (on bending
+walls core.flexure.flex_walls solves the walls and the links together).
 
 One job per geometry (its walls and flexures, each run alone so that one run leaving the model
 does not take the others with it) on the pool: local processes or a Dask cluster.
@@ -278,11 +278,6 @@ def run_geometry(job: Job) -> List[DesignRun]:
             damping = damping_of(flexure, link_mass)
             run = DesignRun(design, wall, geometry, flexure, damping, 'ok', paper=paper)
             runs.append(run)
-            if flexure > 0.0 and WALLS[wall][0] > 0.0:
-                run.status = 'not modelled'
-                run.reason = ('flexures on bending walls: the compiled step does not couple '
-                              'them yet')
-                continue
             try:
                 scenario = wall_scenario(base, wall, geometry, flexure, link_mass)
             except ParameterError as exc:
@@ -447,12 +442,9 @@ def write_figure(study: Study, wall: str, path: Path) -> Path:
         ax.set_ylabel(f'{label}{" (" + unit.strip() + ")" if unit else ""}, log scale')
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-    unmodelled = sum(r.status == 'not modelled' for r in study.on(wall))
-    refused = len(study.on(wall)) - len(runs) - unmodelled
+    refused = len(study.on(wall)) - len(runs)
     fig.suptitle(f'Design study on the {wall} walls ({study.voltage:g} V, level)\n{len(runs)} '
-                 f'designs ran, {refused} could not (summary.md says why)'
-                 + (f', {unmodelled} flexures not modelled on bending walls' if unmodelled
-                    else ''))
+                 f'designs ran, {refused} could not (summary.md says why)')
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
