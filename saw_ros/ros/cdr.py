@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import math
 import struct
+from typing import List, Optional
 
 NS_PER_S = 1_000_000_000     # nanoseconds per second: the one name for it in the ROS layer
 _LITTLE = (0x00, 0x01)
@@ -98,7 +99,7 @@ class JointPositions:
         count = _u32(data, e, offset)
         offset += 4
         wanted = {name.encode(): k for k, name in enumerate(self.names)}
-        index = [None] * len(self.names)
+        index: List[Optional[int]] = [None] * len(self.names)
         for i in range(count):
             offset = _align(offset, 4)
             length = _u32(data, e, offset)

@@ -624,6 +624,9 @@ def pose_interpolator(t: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.nda
     """
     poses = StampedSeries.of(t, x, y, theta)
     phases = StampedSeries.of(t, phase)
-    flexing = None if deflection is None else \
-        StampedSeries.of(deflection_t, *np.asarray(deflection, float).T)
+    flexing = None
+    if deflection is not None:
+        if deflection_t is None:
+            raise ValueError('deflections without their times (deflection_t)')
+        flexing = StampedSeries.of(deflection_t, *np.asarray(deflection, float).T)
     return lambda time: pose_between(poses, phases, time, flexing)

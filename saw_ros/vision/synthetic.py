@@ -83,7 +83,8 @@ def _flexing_run(scenario: Scenario, duration: float) \
     sim = Simulator(scenario)
     steps = int(round(duration / sim.dt))
     every = max(1, int(round(DEFLECTION_PERIOD / sim.dt)))
-    pieces, times, deflections = [], [0.0], [sim.deflection[0].copy()]
+    pieces: List[Trajectory] = []
+    times, deflections = [0.0], [sim.deflection[0].copy()]
     done = 0
     while done < steps:
         n = min(every, steps - done)
