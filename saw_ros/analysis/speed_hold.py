@@ -126,8 +126,9 @@ def hold(feedback: str = 'tracking', target: float = TARGET,
             speed = float(sim.q[3, 0])
         else:
             frames += 1
+            # A compliant robot's links drawn deflected on their flexures (0 for rigid links).
             pose = RobotPose(float(sim.q[0, 0]), float(sim.q[1, 0]), float(sim.q[2, 0]),
-                             float(sim.phase[0]))
+                             float(sim.phase[0]), tuple(sim.deflection[0].tolist()))
             assert renderer is not None and renderer_tracker is not None  # made for 'tracking'
             result = renderer_tracker.update(renderer.render(pose), sim.t)
             ok += result.ok
