@@ -235,8 +235,11 @@ class FoxgloveBridge(Node):
         subscription = self.subscriptions_by_topic.pop(name, None)
         if subscription is None:
             return
-        if self.batched.pop(name, None) is not None:
-            # What it holds goes nowhere: the SDK forgot the client's subscription first.
+        batch = self.batched.pop(name, None)
+        if batch is not None:
+            # A latched topic is subscribed afresh for each new client: what the old
+            # subscription holds is still for the clients already watching.
+            self._take(*batch)
             self.intake.destroy_subscription(subscription)
         else:
             self.destroy_subscription(subscription)
