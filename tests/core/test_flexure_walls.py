@@ -6,7 +6,7 @@ import pytest
 
 from saw_ros.core.contact import EXPONENT, KN_HALF, KN_MEAN, KN_RATE, LAW_FIELDS, NORMAL
 from saw_ros.core.contact import PENETRATION, SEEN, TIP_FIELDS
-from saw_ros.core.dynamic_walls import TABLE
+from saw_ros.core.dynamic_walls import DynamicWalls, TABLE
 from saw_ros.core.dynamics import Simulator
 from saw_ros.core.flexure import balance_link, contact_law, FLEX_COMPLIANCE, flex_walls
 from saw_ros.core.flexure import FLEX_ROWS, FLEX_WORK_ROWS, flexure_constants
@@ -152,3 +152,24 @@ def test_a_link_pressed_into_both_walls_balances_its_flexure_and_both_walls(yiel
     if not yielding:
         e_link, fb, ft = balance_link(2e-3, 3e-3, 0.0, 0.0, 0.0, c, law4)
         np.testing.assert_allclose([e, force[0], force[1]], [e_link, fb, ft], rtol=1e-9)
+
+
+def test_flexures_on_massless_walls_in_a_batch_with_mass_are_the_quasi_static_ones():
+    """
+    Massless walls with flexures, on the modes' path, are the quasi-static walls' step.
+
+    In a batch with walls with mass every wall takes the modes' path of ``flex_walls``: the
+    massless tissue with flexures follows the quasi-static walls with them within 1e-6 m over
+    4 s.
+    """
+    tissue = {key: value for key, value in TISSUE_WITH_MASS.items()
+              if key.startswith('surface.')}
+    quasi = Scenario().with_values({**tissue, **DAMPED})
+    batch = Simulator([quasi, Scenario().with_values({**TISSUE_WITH_MASS, **DAMPED})])
+    assert isinstance(batch.walls, DynamicWalls)
+    alone = Simulator(quasi)
+    assert type(alone.walls) is Walls
+    reference = alone.run(4.0, record_every=10)
+    run = batch.run(4.0, record_every=10)
+    assert np.abs(run.q[:, 0, :3] - reference.q[:, 0, :3]).max() <= 1e-6
+    assert np.abs(run.q[:, 1, :2] - reference.q[:, 0, :2]).max() > 1e-4     # mass matters
