@@ -394,14 +394,18 @@ def flex_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np.
     # The walls' own motion over the step (walls with mass): SEEN = PENETRATION - free
     # correction at every tip it and the free deflections can bring within reach.
     # (The modes' scratch holds one wall's free modes at a time: ``freed`` says whose.)
-    bounds = np.zeros(2)
+    bottom_bound = top_bound = 0.0
     freed = -1
     if swinging:
         for wall in range(2):
-            bounds[wall] = _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
+            bound = _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
+            if wall:
+                top_bound = bound
+            else:
+                bottom_bound = bound
             freed = wall
             for p in range(wall * n, wall * n + n):
-                if tips[PENETRATION, p] + bounds[wall] + largest_free > reach:
+                if tips[PENETRATION, p] + bound + largest_free > reach:
                     _tip_table(modes, p, tips[X, p])
                     tips[SEEN, p] = tips[PENETRATION, p] - _free_at(modes, p)
     # The tips that can touch: each wall's in their order along it, bottom wall first.
@@ -424,11 +428,12 @@ def flex_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np.
         for wall in range(2):
             sign = 1.0 - 2.0 * wall
             at = top_at if wall else bottom_at
+            bound = top_bound if wall else bottom_bound
             for i in range(n):
                 if at[i] < 0.0:
                     continue
                 k, p = int(at[i]), wall * n + i
-                if swinging and tips[PENETRATION, p] + bounds[wall] + largest_free <= reach:
+                if swinging and tips[PENETRATION, p] + bound + largest_free <= reach:
                     if freed != wall:                       # joined after the solve
                         _free_modes(modes, WALL_STATE + wall * STATE_ROWS)
                         freed = wall

@@ -52,9 +52,9 @@ def test_flexures_on_the_stiffest_walls_follow_the_rigid_walls_step():
 
     The damped flexure of docs/compliant_robot.md (1e-7 m measured). A lightly damped one (the
     TPU set, damping ratio 0.09) passes on differences: the walls' own give, 5 nm under a 5 N
-    tip, moves it by 5e-6 m over 4 s, as a nanometre of gap moves it on rigid walls by
+    tip, moves it by 5e-6 to 3e-5 m over 4 s, as a nanometre of gap moves it on rigid walls by
     2.5e-7 m. With the walls' compliance taken out, the coupled solve is the rigid walls' link
-    solve, to rounding amplified so (1e-9 m measured).
+    solve, to rounding amplified so (6e-10 m measured).
     """
     rigid = Simulator(Scenario().with_values(DAMPED))
     stiffest = Simulator(Scenario().with_values({**STIFFEST, **DAMPED}))
