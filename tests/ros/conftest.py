@@ -43,3 +43,37 @@ def _drive_camera(sim, pub_pose, pub_joints, duration, vision, camera, spin):
 def drive_camera():
     """Return the helper above that feeds the camera node the core's steps."""
     return _drive_camera
+
+
+def _run_simulator_into_camera(simulator, camera, nodes, executor, spin, frames, images, matched):
+    """
+    Run the in-process simulator node until it finishes and ``frames`` images have arrived.
+
+    The simulator holds its first step until the camera's inputs, ``matched()`` (what else the
+    test waits on) and the camera's knowledge of the robot are in place, so that no input is lost;
+    what is still in flight after the end is taken; then the executor and ``nodes`` are shut.
+    """
+    import time
+
+    from saw_ros.graph.process import wait_for
+    try:
+        simulator.started = False
+        assert wait_for(lambda: all(s.get_publisher_count() > 0 for s in camera._inputs)
+                        and camera._pub_image.get_subscription_count() > 0 and matched()
+                        and camera.simulator_parameters.known, 10.0, spin=spin)
+        simulator.started = True
+        simulator._rebase(time.monotonic())
+        assert wait_for(lambda: simulator.finished and len(images) >= frames, 20.0, spin=spin), \
+            (simulator.steps, camera.frames, len(images))
+        wait_for(lambda: False, 0.2, spin=spin)         # what is still in flight
+    finally:
+        executor.shutdown()
+        camera.close()
+        for node in nodes:
+            node.destroy_node()
+
+
+@pytest.fixture
+def run_simulator_into_camera():
+    """Return the helper above that runs the simulator node into the camera node, in process."""
+    return _run_simulator_into_camera

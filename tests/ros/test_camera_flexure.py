@@ -18,7 +18,8 @@ def _spin(executor):
     return lambda t: executor.spin_once(timeout_sec=t)
 
 
-def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context):
+def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context,
+                                                                  run_simulator_into_camera):
     """
     Simulator (a compliant robot) and camera in this executor, through real topics.
 
@@ -26,8 +27,6 @@ def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context):
     link_NN_flex positions received (linear between the two joint states around the frame,
     bit for bit), and not the rigid robot's picture: the links flexed on camera.
     """
-    import time
-
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.parameter import Parameter
@@ -55,22 +54,8 @@ def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context):
     spin = _spin(executor)
     frames = int(DURATION * 60)
     joints_out, = (p for p in simulator._publishers_all if p.topic_name == table.JOINT_STATES)
-    try:
-        simulator.started = False
-        assert wait_for(lambda: all(s.get_publisher_count() > 0 for s in camera._inputs)
-                        and camera._pub_image.get_subscription_count() > 0
-                        and joints_out.get_subscription_count() >= 2
-                        and camera.simulator_parameters.known, 10.0, spin=spin)
-        simulator.started = True
-        simulator._rebase(time.monotonic())
-        assert wait_for(lambda: simulator.finished and len(images) >= frames, 20.0, spin=spin), \
-            (simulator.steps, camera.frames, len(images))
-        wait_for(lambda: False, 0.2, spin=spin)         # what is still in flight
-    finally:
-        executor.shutdown()
-        camera.close()
-        for node in (simulator, camera, watcher):
-            node.destroy_node()
+    run_simulator_into_camera(simulator, camera, (simulator, camera, watcher), executor, spin,
+                              frames, images, lambda: joints_out.get_subscription_count() >= 2)
 
     assert len(images) == frames and camera.guard.refused == 0
     robot = camera.renderer.robot

@@ -79,7 +79,7 @@ TISSUE = {'surface.foundation_stiffness': 9e3, 'surface.bending_stiffness': 1.2e
 CAMERA_DURATION = 0.5   # s of simulated time, at real time
 
 
-def test_camera_draws_the_walls_bent_as_published(ros_context):
+def test_camera_draws_the_walls_bent_as_published(ros_context, run_simulator_into_camera):
     """
     Simulator (soft-tissue walls) and camera in this process's executor, through real topics.
 
@@ -87,12 +87,9 @@ def test_camera_draws_the_walls_bent_as_published(ros_context):
     for bit), never the flat picture, and the bottom wall's edge under the robot is lower than
     flat by the published deflection.
     """
-    import time
-
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.parameter import Parameter
-    from saw_ros.graph.process import wait_for
     from saw_ros.ros import conversions as conv
     from saw_ros.ros.nodes.camera import CameraNode
     from saw_ros.ros.nodes.simulator import SimulatorNode
@@ -118,24 +115,9 @@ def test_camera_draws_the_walls_bent_as_published(ros_context):
         executor.add_node(node)
     spin = lambda t: executor.spin_once(timeout_sec=t)  # noqa: E731
     frames = int(CAMERA_DURATION * 60)      # 1/60 .. 30/60 s: the first pose is at 1 ms
-    try:
-        # Everything matched (and the simulator's robot known to the camera) before the first
-        # step, so that no input is lost.
-        simulator.started = False
-        assert wait_for(lambda: all(s.get_publisher_count() > 0 for s in camera._inputs)
-                        and simulator._pub_walls.get_subscription_count() >= 2
-                        and camera._pub_image.get_subscription_count() > 0
-                        and camera.simulator_parameters.known, 10.0, spin=spin)
-        simulator.started = True
-        simulator._rebase(time.monotonic())
-        assert wait_for(lambda: simulator.finished and len(images) >= frames, 20.0, spin=spin), \
-            (simulator.steps, camera.frames, len(images))
-        wait_for(lambda: False, 0.2, spin=spin)         # what is still in flight
-    finally:
-        executor.shutdown()
-        camera.close()
-        for node in (simulator, camera, watcher):
-            node.destroy_node()
+    run_simulator_into_camera(simulator, camera, (simulator, camera, watcher), executor, spin,
+                              frames, images,
+                              lambda: simulator._pub_walls.get_subscription_count() >= 2)
 
     assert len(images) == frames and camera.received['walls'] == len(clouds) >= frames
     shapes = [(conv.stamp_ns(c.header.stamp), conv.walls_of(c)) for c in clouds]
