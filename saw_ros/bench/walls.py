@@ -22,13 +22,12 @@ Issue 23 figures: walls that bend (core.walls).
   TPU) on the silicone sheet (core.flexure.flex_walls: walls and links in one solve), taken in
   the same turns; ``compliant_bending_cpu_speed_ratio`` the rigid step's CPU time over it.
 """
-import math
 import time
 
 import numpy as np
 
 from saw_ros.bench.compliant import TPU
-from saw_ros.bench.core import batch_scenarios, run_rate
+from saw_ros.bench.core import batch_scenarios, run_rate, step_cpu_ns
 from saw_ros.core import Scenario, Simulator
 from saw_ros.core.dynamics import simulate
 from saw_ros.core.walls import deflection, finite_difference_deflection, point_deflection
@@ -72,20 +71,6 @@ def _batch_rate(scenarios, duration) -> float:
     start = time.perf_counter()
     simulate(scenarios, duration, record_every=10)
     return len(scenarios) * duration / 0.001 / (time.perf_counter() - start)
-
-
-def step_cpu_ns(sims, duration, repeats=5):
-    """Return each simulator's least CPU ns per step of ``run(duration)``, the runs in turn."""
-    for sim in sims:
-        sim.run(0.05)                                # compiled, contacts settled
-    best = [math.inf] * len(sims)
-    for _ in range(repeats):
-        for k, sim in enumerate(sims):
-            start = time.process_time()
-            sim.run(duration, record_every=10)
-            used = time.process_time() - start
-            best[k] = min(best[k], used / round(duration / sim.dt) * 1e9)
-    return best
 
 
 def run(quick=False):
