@@ -145,15 +145,63 @@ def elastic_law(stiffness: float, exponent: float) -> np.ndarray:
 @compiled
 def _law(depth: float, before: float, law: np.ndarray) -> Tuple[float, float]:
     """Return the normal law's force and its slope at ``depth`` after ``before`` (0 outside)."""
+    return _hertz(depth, before, law[0], law[1], law[2], law[3])
+
+
+@compiled
+def _hertz(depth: float, before: float, mean: float, half: float, rate: float,
+           exponent: float) -> Tuple[float, float]:
+    """
+    ``_law`` on the constants themselves: force and slope, a square root where p = 1.5.
+
+    Through pow the power cost some 40 ns a call: ``flex_links`` took 2 200 ns a step of the
+    TPU set (8 touching links, 5.5 calls each), 450 with the root and one call an iteration.
+    """
     if depth <= 0.0:
         return 0.0, 0.0
-    change = (depth - before) * law[2]
-    factor = law[0] + max(min(change, law[1]), -law[1])
-    root = depth ** (law[3] - 1.0)
-    slope = law[3] * factor * root
-    if abs(change) < law[1]:
-        slope += law[2] * root * depth
+    change = (depth - before) * rate
+    factor = mean + max(min(change, half), -half)
+    root = math.sqrt(depth) if exponent == 1.5 else depth ** (exponent - 1.0)
+    slope = exponent * factor * root
+    if abs(change) < half:
+        slope += rate * root * depth
     return factor * root * depth, slope
+
+
+@compiled
+def _deflection(bottom: float, top: float, before_bottom: float, before_top: float,
+                free: float, compliance: float, mean: float, half: float, rate: float,
+                exponent: float) -> float:
+    """
+    Return one link's deflection e at the step's end (``balance_link``; the law's constants).
+
+    A link whose tips stay out of their walls at its free deflection has e = free: the loop
+    would find a zero residual at once. Each iteration evaluates the law once, at the new e.
+    """
+    e = free
+    if bottom - e <= 0.0 and top + e <= 0.0:
+        return e
+    fb, sb = _hertz(bottom - e, before_bottom, mean, half, rate, exponent)
+    ft, st = _hertz(top + e, before_top, mean, half, rate, exponent)
+    image = free + compliance * (fb - ft)
+    low, high = min(e, image), max(e, image)
+    for iteration in range(MAX_ITERATIONS):
+        residual = e - free - compliance * (fb - ft)
+        if residual > 0.0:
+            high = min(high, e)
+        else:
+            low = max(low, e)
+        step = residual / (1.0 + compliance * (sb + st))
+        e -= step
+        if abs(step) < TOLERANCE:
+            break
+        if not low <= e <= high:
+            e = 0.5 * (low + high)
+        if high - low < TOLERANCE:
+            break
+        fb, sb = _hertz(bottom - e, before_bottom, mean, half, rate, exponent)
+        ft, st = _hertz(top + e, before_top, mean, half, rate, exponent)
+    return e
 
 
 @compiled
@@ -169,27 +217,8 @@ def balance_link(bottom: float, top: float, before_bottom: float, before_top: fl
     root is single and bracketed by free and its first image. Newton inside the bracket,
     bisection when a step would leave it (the law's kinks: contact, the hysteresis band's ends).
     """
-    e = free
-    fb, sb = _law(bottom - e, before_bottom, law)
-    ft, st = _law(top + e, before_top, law)
-    image = free + compliance * (fb - ft)
-    low, high = min(e, image), max(e, image)
-    for iteration in range(MAX_ITERATIONS):
-        fb, sb = _law(bottom - e, before_bottom, law)
-        ft, st = _law(top + e, before_top, law)
-        residual = e - free - compliance * (fb - ft)
-        if residual > 0.0:
-            high = min(high, e)
-        else:
-            low = max(low, e)
-        step = residual / (1.0 + compliance * (sb + st))
-        e -= step
-        if abs(step) < TOLERANCE:
-            break
-        if not low <= e <= high:
-            e = 0.5 * (low + high)
-        if high - low < TOLERANCE:
-            break
+    e = _deflection(bottom, top, before_bottom, before_top, free, compliance, law[0], law[1],
+                    law[2], law[3])
     fb, _ = _law(bottom - e, before_bottom, law)
     ft, _ = _law(top + e, before_top, law)
     return e, fb, ft
@@ -248,16 +277,16 @@ def flex_links(law_row: np.ndarray, constants: np.ndarray, state: np.ndarray,
     tip (link n + i). ``law_row``: core.contact's LAW_FIELDS.
     """
     n = state.shape[1]
-    law = np.empty(4)
-    law[0], law[1], law[2] = law_row[KN_MEAN], law_row[KN_HALF], law_row[KN_RATE]
-    law[3] = law_row[EXPONENT]
-    k, c = constants[FLEX_STIFFNESS], constants[FLEX_DAMPING]
+    mean, half, rate = law_row[KN_MEAN], law_row[KN_HALF], law_row[KN_RATE]
+    exponent = law_row[EXPONENT]
+    k, c, dt = constants[FLEX_STIFFNESS], constants[FLEX_DAMPING], constants[FLEX_DT]
+    compliance = constants[FLEX_COMPLIANCE]
     phi = constants[FLEX_PHI:FLEX_PHI + 4]
     for i in range(n):
-        free, _ = _ramp(state[DEFLECTION, i], state[RATE, i], state[LOAD, i], 0.0, k, c,
-                        constants[FLEX_DT], phi)
-        e, fb, ft = balance_link(tips[SEEN, i], tips[SEEN, n + i], tips[DEPTH, i],
-                                 tips[DEPTH, n + i], free, constants[FLEX_COMPLIANCE], law)
+        free, _ = _ramp(state[DEFLECTION, i], state[RATE, i], state[LOAD, i], 0.0, k, c, dt,
+                        phi)
+        e = _deflection(tips[SEEN, i], tips[SEEN, n + i], tips[DEPTH, i], tips[DEPTH, n + i],
+                        free, compliance, mean, half, rate, exponent)
         tips[SEEN, i] -= e
         tips[SEEN, n + i] += e
 
