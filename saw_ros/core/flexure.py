@@ -170,22 +170,23 @@ def _hertz(depth: float, before: float, mean: float, half: float, rate: float,
 
 @compiled
 def _deflection(bottom: float, top: float, before_bottom: float, before_top: float,
-                free: float, compliance: float, mean: float, half: float, rate: float,
-                exponent: float) -> float:
+                free: float, guess: float, compliance: float, mean: float, half: float,
+                rate: float, exponent: float) -> float:
     """
-    Return one link's deflection e at the step's end (``balance_link``; the law's constants).
+    Return one link's deflection e at the step's end (``balance_link``), Newton from ``guess``.
 
-    A link whose tips stay out of their walls at its free deflection has e = free: the loop
-    would find a zero residual at once. Each iteration evaluates the law once, at the new e.
+    A link whose tips stay out of their walls at its free deflection has e = free. Otherwise
+    the residual r(e) = e - free - C (F_bottom - F_top) rises with e, and the root is bracketed
+    without evaluating the law: at e = max(bottom, free) the bottom tip is out of its wall
+    (r >= 0), at min(-top, free) the top tip (r <= 0). Each iteration evaluates the law once.
     """
-    e = free
-    if bottom - e <= 0.0 and top + e <= 0.0:
-        return e
-    fb, sb = _hertz(bottom - e, before_bottom, mean, half, rate, exponent)
-    ft, st = _hertz(top + e, before_top, mean, half, rate, exponent)
-    image = free + compliance * (fb - ft)
-    low, high = min(e, image), max(e, image)
+    if bottom - free <= 0.0 and top + free <= 0.0:
+        return free
+    low, high = min(-top, free), max(bottom, free)
+    e = min(max(guess, low), high)
     for iteration in range(MAX_ITERATIONS):
+        fb, sb = _hertz(bottom - e, before_bottom, mean, half, rate, exponent)
+        ft, st = _hertz(top + e, before_top, mean, half, rate, exponent)
         residual = e - free - compliance * (fb - ft)
         if residual > 0.0:
             high = min(high, e)
@@ -195,12 +196,13 @@ def _deflection(bottom: float, top: float, before_bottom: float, before_top: flo
         e -= step
         if abs(step) < TOLERANCE:
             break
-        if not low <= e <= high:
+        # Strictly inside: on the linear law's hysteresis kinks Newton can hop between two
+        # points that are already the bracket's ends, never converging (7 links in 2 000 steps
+        # ran all MAX_ITERATIONS so); the bisection breaks the cycle.
+        if not low < e < high:
             e = 0.5 * (low + high)
         if high - low < TOLERANCE:
             break
-        fb, sb = _hertz(bottom - e, before_bottom, mean, half, rate, exponent)
-        ft, st = _hertz(top + e, before_top, mean, half, rate, exponent)
     return e
 
 
@@ -214,11 +216,11 @@ def balance_link(bottom: float, top: float, before_bottom: float, before_top: fl
     inside); the link at e presses its bottom tip bottom - e deep and its top tip top + e;
     e = free + C (F_bottom - F_top), F the contact law ``law`` (``contact_law``) after the last
     step's depths. The law rises with the depth, so the right-hand side falls as e rises: the
-    root is single and bracketed by free and its first image. Newton inside the bracket,
+    root is single and bracketed (``_deflection``). Newton from free inside the bracket,
     bisection when a step would leave it (the law's kinks: contact, the hysteresis band's ends).
     """
-    e = _deflection(bottom, top, before_bottom, before_top, free, compliance, law[0], law[1],
-                    law[2], law[3])
+    e = _deflection(bottom, top, before_bottom, before_top, free, free, compliance, law[0],
+                    law[1], law[2], law[3])
     fb, _ = _law(bottom - e, before_bottom, law)
     ft, _ = _law(top + e, before_top, law)
     return e, fb, ft
@@ -285,8 +287,10 @@ def flex_links(law_row: np.ndarray, constants: np.ndarray, state: np.ndarray,
     for i in range(n):
         free, _ = _ramp(state[DEFLECTION, i], state[RATE, i], state[LOAD, i], 0.0, k, c, dt,
                         phi)
+        # Newton from the last step's loaded deflection on this step's free one.
         e = _deflection(tips[SEEN, i], tips[SEEN, n + i], tips[DEPTH, i], tips[DEPTH, n + i],
-                        free, compliance, mean, half, rate, exponent)
+                        free, free + compliance * state[LOAD, i], compliance, mean, half, rate,
+                        exponent)
         tips[SEEN, i] -= e
         tips[SEEN, n + i] += e
 
