@@ -245,11 +245,14 @@ def balance_links(bottom: np.ndarray, top: np.ndarray, before_bottom: np.ndarray
 
 
 # The flexures in the compiled step (core.dynamics.advance_scenario): a scenario's constants
-# (FLEX_FIELDS: on, k, c, m, the step's compliance C, dt, the propagator Phi) and its links'
-# state (FLEX_ROWS x n: deflection, rate, the last step-end load, and the inertial share of the
-# reaction the body gets through the link's bottom tip this step).
+# (FLEX_FIELDS: on, k, c, m, the step's compliance C, dt, the propagator Phi, and the step
+# ``_ramp`` as the 2 x 4 matrix it is: (e, e') after the step from (e, e', the last load, this
+# step's load), row by row) and its links' state (FLEX_ROWS x n: deflection, rate, the last
+# step-end load, and the inertial share of the reaction the body gets through the link's bottom
+# tip this step).
 FLEX_ON, FLEX_STIFFNESS, FLEX_DAMPING, FLEX_MASS, FLEX_COMPLIANCE, FLEX_DT, FLEX_PHI = range(7)
-FLEX_FIELDS = FLEX_PHI + 4
+FLEX_RAMP = FLEX_PHI + 4
+FLEX_FIELDS = FLEX_RAMP + 8
 DEFLECTION, RATE, LOAD, INERTIAL = range(4)
 FLEX_ROWS = 4
 
@@ -263,8 +266,25 @@ def flexure_constants(flexures: Sequence[FlexureParams], dt: float) -> np.ndarra
             row[FLEX_ON], row[FLEX_STIFFNESS], row[FLEX_DAMPING] = 1.0, f.stiffness, f.damping
             row[FLEX_MASS], row[FLEX_COMPLIANCE] = f.link_mass, flexures_of_one.compliance
             row[FLEX_DT] = dt
-            row[FLEX_PHI:] = flexures_of_one.phi
+            row[FLEX_PHI:FLEX_RAMP] = flexures_of_one.phi
+            # _ramp is linear in (e, e', start, end): its columns are its images of the unit
+            # vectors. The step then takes 8 products a link instead of _ramp's 6 divisions.
+            for j in range(4):
+                unit = [0.0] * 4
+                unit[j] = 1.0
+                row[FLEX_RAMP + j], row[FLEX_RAMP + 4 + j] = _ramp(
+                    unit[0], unit[1], unit[2], unit[3], f.stiffness, f.damping, dt,
+                    flexures_of_one.phi)
     return out
+
+
+@compiled
+def _ramped(e: float, rate: float, start: float, end: float,
+            constants: np.ndarray) -> Tuple[float, float]:
+    """Return ``_ramp``'s (e, e') from the scenario's FLEX_RAMP matrix (``flexure_constants``)."""
+    r = constants[FLEX_RAMP:FLEX_RAMP + 8]
+    return (r[0] * e + r[1] * rate + r[2] * start + r[3] * end,
+            r[4] * e + r[5] * rate + r[6] * start + r[7] * end)
 
 
 @compiled
@@ -281,12 +301,9 @@ def flex_links(law_row: np.ndarray, constants: np.ndarray, state: np.ndarray,
     n = state.shape[1]
     mean, half, rate = law_row[KN_MEAN], law_row[KN_HALF], law_row[KN_RATE]
     exponent = law_row[EXPONENT]
-    k, c, dt = constants[FLEX_STIFFNESS], constants[FLEX_DAMPING], constants[FLEX_DT]
     compliance = constants[FLEX_COMPLIANCE]
-    phi = constants[FLEX_PHI:FLEX_PHI + 4]
     for i in range(n):
-        free, _ = _ramp(state[DEFLECTION, i], state[RATE, i], state[LOAD, i], 0.0, k, c, dt,
-                        phi)
+        free, _ = _ramped(state[DEFLECTION, i], state[RATE, i], state[LOAD, i], 0.0, constants)
         # Newton from the last step's loaded deflection on this step's free one.
         e = _deflection(tips[SEEN, i], tips[SEEN, n + i], tips[DEPTH, i], tips[DEPTH, n + i],
                         free, free + compliance * state[LOAD, i], compliance, mean, half, rate,
@@ -306,15 +323,13 @@ def flex_advance(constants: np.ndarray, state: np.ndarray, tips: np.ndarray) -> 
     (dynamics.move_body) sums the flexures' reactions; ``flex_restore`` takes it back after.
     """
     n = state.shape[1]
-    k, c, m, dt = (constants[FLEX_STIFFNESS], constants[FLEX_DAMPING], constants[FLEX_MASS],
-                   constants[FLEX_DT])
-    phi = constants[FLEX_PHI:FLEX_PHI + 4]
+    momentum_rate = constants[FLEX_MASS] / constants[FLEX_DT]
     for i in range(n):
         end = tips[NORMAL, i] - tips[NORMAL, n + i]
         before = state[RATE, i]
-        e, rate = _ramp(state[DEFLECTION, i], before, state[LOAD, i], end, k, c, dt, phi)
+        e, rate = _ramped(state[DEFLECTION, i], before, state[LOAD, i], end, constants)
         state[DEFLECTION, i], state[RATE, i], state[LOAD, i] = e, rate, end
-        inertial = -m * (rate - before) / dt
+        inertial = -momentum_rate * (rate - before)
         state[INERTIAL, i] = inertial
         tips[NORMAL, i] += inertial
 
@@ -409,7 +424,6 @@ def flex_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np.
     n = state.shape[2]
     reach = walls[REACH]
     c_flex = constants[FLEX_COMPLIANCE]
-    phi = constants[FLEX_PHI:FLEX_PHI + 4]
     free, bottom_at, top_at = work[FREE_ROW], work[BOTTOM_AT], work[TOP_AT]
     fresh, x, depth, before = work[FRESH], work[X_ROW], work[DEPTH_ROW], work[BEFORE_ROW]
     u, force, net = work[GIVE], work[FORCE], work[NET]
@@ -419,9 +433,8 @@ def flex_walls(law: np.ndarray, walls: np.ndarray, state: np.ndarray, modes: np.
     count_modes = modes.shape[1]
     largest_free = 0.0
     for i in range(n):
-        free[i], _ = _ramp(flex_state[DEFLECTION, i], flex_state[RATE, i], flex_state[LOAD, i],
-                           0.0, constants[FLEX_STIFFNESS], constants[FLEX_DAMPING],
-                           constants[FLEX_DT], phi)
+        free[i], _ = _ramped(flex_state[DEFLECTION, i], flex_state[RATE, i],
+                             flex_state[LOAD, i], 0.0, constants)
         largest_free = max(largest_free, abs(free[i]))
         bottom_at[i] = top_at[i] = -1.0
     # The walls' own motion over the step (walls with mass): SEEN = PENETRATION - free
