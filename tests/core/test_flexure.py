@@ -64,6 +64,25 @@ def test_both_tips_touching_balance_one_link():
     assert e[0] == pytest.approx(free[0] + flexures.compliance * (fb[0] - ft[0]), abs=1e-12)
 
 
+def test_a_link_on_the_hysteresis_kink_of_a_linear_law_converges():
+    """
+    A step of the TPU robot on hertz_exponent 1 whose Newton hopped between two points.
+
+    Recorded from a run (the 0.69 mm depth the law last saw sits on the hysteresis band's
+    end): both points were already the bracket's ends, so no bisection broke the cycle, and
+    all 60 iterations ended 12.5 um from the root (residual 4.3e-5 m). Now the root's residual
+    is rounding.
+    """
+    compliance = 3.988264395363909e-05
+    law = np.array([14725.0, 775.0, 77500000.0, 1.0])
+    bottom, top, before, free = 0.00540912771168749, -0.0316, 0.000689090902300995, 0.00431843
+    e, fb, ft = np.empty(1), np.empty(1), np.empty(1)
+    balance_links(np.array([bottom]), np.array([top]), np.array([before]), np.zeros(1),
+                  np.array([free]), compliance, law, e, fb, ft)
+    assert fb[0] > 0.0 and ft[0] == 0.0
+    assert abs(e[0] - free - compliance * fb[0]) < 1e-12
+
+
 @pytest.mark.parametrize('frequency', [12.0, 60.0])
 def test_a_harmonically_pressed_link_follows_the_closed_form(frequency):
     """
