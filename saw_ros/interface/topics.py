@@ -82,8 +82,9 @@ TOPICS: Tuple[Topic, ...] = (
           "each wave link's angle, its centre along x and along y, its deflection on its "
           'flexure',
           subscribers='camera, comparison, speed_controller',
-          trust='a finite helix position and velocity, arrays one a name: the camera draws '
-                'that wave phase, the comparison counts helix turns with it, the speed '
+          trust='a finite helix position and velocity, arrays one a name, `link_NN_flex` '
+                "finite and within the joint's limit (2 A): the camera draws that wave phase "
+                'and those deflections, the comparison counts helix turns with it, the speed '
                 "controller's helix feedback changes the voltage commanded"),
     Topic(MOTOR, 'sensor_msgs/msg/BatteryState', 'tracking', 'simulator', '100 Hz', 'base_link',
           'motor supply voltage and current (negative: drawn; NaN at constant frequency)'),
