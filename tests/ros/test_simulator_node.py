@@ -60,9 +60,11 @@ class Watcher:
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.raw = {topic: [] for topic in TOPICS}
-        # Reliable like the publisher; 1 s of queue so that a test process the shared machine
-        # deschedules for a moment does not drop messages of its own making.
-        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+        # Reliable like the publisher; 10 s of queue so that a test process the machine
+        # deschedules does not drop messages of its own making: with the CPU capped to a third
+        # (scripts/slower_machine.sh) this Python reader of 5 000 messages/s fell over 1 s
+        # behind the simulator and lost stamps past a 1 s queue.
+        qos = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
         for topic in TOPICS:
             self.node.create_subscription(_type(topic), topic, self.raw[topic].append, qos,
                                           raw=True)
