@@ -77,3 +77,20 @@ def _run_simulator_into_camera(simulator, camera, nodes, executor, spin, frames,
 def run_simulator_into_camera():
     """Return the helper above that runs the simulator node into the camera node, in process."""
     return _run_simulator_into_camera
+
+
+def _still_camera(context):
+    """Return a camera node of a 640x360 picture around x = 0: no follow, no texture, raw."""
+    from rclpy.parameter import Parameter
+
+    from saw_ros.ros.nodes.camera import CameraNode
+    return CameraNode(context=context, parameter_overrides=[
+        Parameter('width', value=640), Parameter('height', value=360),
+        Parameter('center_x', value=0.0), Parameter('follow', value=False),
+        Parameter('texture', value=False), Parameter('image_transport', value='raw')])
+
+
+@pytest.fixture
+def still_camera():
+    """Return the helper above: the camera whose frames the in-process tests compare."""
+    return _still_camera

@@ -18,7 +18,7 @@ def _spin(executor):
     return lambda t: executor.spin_once(timeout_sec=t)
 
 
-def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context,
+def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context, still_camera,
                                                                   run_simulator_into_camera):
     """
     Simulator (a compliant robot) and camera in this executor, through real topics.
@@ -31,7 +31,6 @@ def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context,
     from rclpy.node import Node
     from rclpy.parameter import Parameter
     from saw_ros.ros import conversions as conv
-    from saw_ros.ros.nodes.camera import CameraNode
     from saw_ros.ros.nodes.simulator import SimulatorNode
     from saw_ros.ros.qos import profile
     from sensor_msgs.msg import Image, JointState
@@ -39,10 +38,7 @@ def test_camera_draws_the_links_deflected_as_the_joint_states_say(ros_context,
     simulator = SimulatorNode(context=ros_context, parameter_overrides=[
         Parameter(name, value=value) for name, value in COMPLIANT.items()] + [
         Parameter('real_time_factor', value=1.0), Parameter('duration', value=DURATION)])
-    camera = CameraNode(context=ros_context, parameter_overrides=[
-        Parameter('width', value=640), Parameter('height', value=360),
-        Parameter('center_x', value=0.0), Parameter('follow', value=False),
-        Parameter('texture', value=False), Parameter('image_transport', value='raw')])
+    camera = still_camera(ros_context)
     watcher = Node('flexure_camera_watcher', context=ros_context)
     images, joints = [], []
     watcher.create_subscription(Image, table.IMAGE, images.append, profile('image'))

@@ -79,7 +79,8 @@ TISSUE = {'surface.foundation_stiffness': 9e3, 'surface.bending_stiffness': 1.2e
 CAMERA_DURATION = 0.5   # s of simulated time, at real time
 
 
-def test_camera_draws_the_walls_bent_as_published(ros_context, run_simulator_into_camera):
+def test_camera_draws_the_walls_bent_as_published(ros_context, still_camera,
+                                                  run_simulator_into_camera):
     """
     Simulator (soft-tissue walls) and camera in this process's executor, through real topics.
 
@@ -91,7 +92,6 @@ def test_camera_draws_the_walls_bent_as_published(ros_context, run_simulator_int
     from rclpy.node import Node
     from rclpy.parameter import Parameter
     from saw_ros.ros import conversions as conv
-    from saw_ros.ros.nodes.camera import CameraNode
     from saw_ros.ros.nodes.simulator import SimulatorNode
     from saw_ros.ros.qos import profile
     from sensor_msgs.msg import Image, PointCloud2
@@ -102,10 +102,7 @@ def test_camera_draws_the_walls_bent_as_published(ros_context, run_simulator_int
         Parameter('duration', value=CAMERA_DURATION)])
     # A 640x360 picture around the robot's start (x 0), no follow, raw images only, a plain
     # grey wall behind (175: the silicone's edge measurable).
-    camera = CameraNode(context=ros_context, parameter_overrides=[
-        Parameter('width', value=640), Parameter('height', value=360),
-        Parameter('center_x', value=0.0), Parameter('follow', value=False),
-        Parameter('texture', value=False), Parameter('image_transport', value='raw')])
+    camera = still_camera(ros_context)
     watcher = Node('walls_camera_watcher', context=ros_context)
     images, clouds = [], []
     watcher.create_subscription(Image, table.IMAGE, images.append, profile('image'))
