@@ -88,6 +88,8 @@ def test_the_publishers_event_thread_sleeps_through_a_1khz_reliable_stream(tmp_p
             p.stop()
     wakeups_per_message = float(pub.output().split()[-1])
     if profile == 'ours':
-        assert wakeups_per_message < 0.2
+        # 0.075 quiet, 0.235 under a CPU cap of a third (a lagging reader NACKs more); Fast
+        # DDS's defaults give 2.37 (docs/measurements.md): half a wake-up tells the two apart.
+        assert wakeups_per_message < 0.5
     else:   # what the profile is for: without it, about one wake-up per message
         assert wakeups_per_message > 0.5

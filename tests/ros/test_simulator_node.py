@@ -240,9 +240,13 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     # Every stamp published once, from 1 ms on, through the refusals, the change and the reset.
     clock = watcher.stamps(table.CLOCK)
     assert_every_step_once(clock, 1, len(clock))
+    # (Each topic against the clock over the time both cover: a reader far behind when the node
+    # stopped may get the last of one topic and not of another.)
     for topic in TOPICS:
-        np.testing.assert_array_equal(watcher.stamps(topic), clock[EVERY[topic] - 1::EVERY[
-            topic]][:watcher.count(topic)], err_msg=topic)
+        stamps = watcher.stamps(topic)
+        stamps = stamps[stamps <= clock[-1]]
+        np.testing.assert_array_equal(stamps, clock[EVERY[topic] - 1::EVERY[topic]][:len(stamps)],
+                                      err_msg=topic)
 
     # Mean over 1-2 s of simulated time (the robot rings between the compliant surfaces).
     mass = Scenario().robot.mass
