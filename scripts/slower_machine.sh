@@ -18,6 +18,10 @@ set -euo pipefail
 SLOWDOWN="${SLOWDOWN:-3}"
 HOGS="${HOGS:-0}"
 PERIOD_US=10000
+# The slower machine would be ours alone: a high scheduling weight lets the capped group take
+# its whole quota even while other work loads this machine (the cap stays the upper bound).
+WEIGHT_V1=262144
+WEIGHT_V2=10000
 if [ "$#" -eq 0 ]; then
   echo "usage: [SLOWDOWN=3] [HOGS=0] scripts/slower_machine.sh COMMAND [ARGS...]" >&2
   exit 2
@@ -40,12 +44,14 @@ if [ -w /sys/fs/cgroup/cpu ] && [ -e /sys/fs/cgroup/cpu/cpu.cfs_quota_us ]; then
   mkdir "$group"
   echo "$PERIOD_US" > "$group/cpu.cfs_period_us"
   echo "$quota" > "$group/cpu.cfs_quota_us"
+  echo "$WEIGHT_V1" > "$group/cpu.shares"
 elif [ -w /sys/fs/cgroup ] && grep -qw cpu /sys/fs/cgroup/cgroup.controllers 2>/dev/null; then
   parent=/sys/fs/cgroup
   group="$parent/$name"
   echo +cpu > /sys/fs/cgroup/cgroup.subtree_control 2>/dev/null || true
   mkdir "$group"
   echo "$quota $PERIOD_US" > "$group/cpu.max"
+  echo "$WEIGHT_V2" > "$group/cpu.weight"
 else
   echo "scripts/slower_machine.sh: no writable cgroup cpu controller here (needs root); cannot cap the CPU" >&2
   exit 2
