@@ -17,7 +17,7 @@ def _sustains_up_to(limit, calls):
     return measure
 
 
-@pytest.mark.parametrize('limit', [0.6, 1.0, 1.5, 2.0, 7.0, 1e9])
+@pytest.mark.parametrize('limit', [0.6, 0.77, 1.0, 1.5, 2.0, 4.3, 4.45, 7.0, 1e9])
 def test_pipeline_ladder_finds_the_limit_or_says_it_is_a_lower_bound(
         tmp_path, monkeypatch, limit):
     from saw_ros.bench import pipeline
@@ -25,12 +25,21 @@ def test_pipeline_ladder_finds_the_limit_or_says_it_is_a_lower_bound(
     monkeypatch.setattr(pipeline, 'measure', _sustains_up_to(limit, calls))
     best, lost, cpu, capped, first = pipeline.ladder(1.0, tmp_path, [])
     assert first['sustained'] == (limit >= 1.0)
-    held = [r for r in pipeline.UP + pipeline.DOWN if r <= limit]
-    assert best == max(held) and lost == 0 and cpu == {'simulator': 0.5}
+    rungs = sorted(pipeline.UP + pipeline.DOWN)
+    held = max(r for r in rungs if r <= limit)
+    assert lost == 0 and cpu == {'simulator': 0.5}
     assert capped == (limit >= pipeline.UP[-1])
-    if not capped and limit >= 1.0:
-        assert calls[-1] > limit          # it stopped at the first rung that failed
     assert pipeline.UP[-1] >= 10 * 2.0    # far above the 2.0 the old ladder stopped at
+    if capped:
+        assert best == pipeline.UP[-1] and calls[-1] == best
+        return
+    # The coarse ladder stopped at the first rung that failed, then bisected the step below it
+    # REFINE times: the figure is held and the limit lies within an eighth of that step above it.
+    failed = min(r for r in rungs if r > limit)
+    step = (failed - held) / 2 ** pipeline.REFINE
+    assert held <= best <= limit < best + step + 1e-9, (best, calls)
+    assert sorted(calls[-pipeline.REFINE:]) == sorted(set(calls[-pipeline.REFINE:]))
+    assert all(held < r < failed for r in calls[-pipeline.REFINE:]), calls
 
 
 @pytest.mark.parametrize('limit', [3.0, 7.0, 1e9])
