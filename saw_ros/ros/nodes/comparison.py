@@ -140,11 +140,17 @@ class ComparisonNode(Node):
         self._tracked_order = checks.StampOrder()
         self._truth_sub = self.guard.subscribe(PoseStamped, topics.POSE, self._on_truth,
                                                with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
-        # The helix's angle from /saw/joint_states, followed only while a motor drives it (its
-        # cycles are then helix turns, docs/motor.md); a constant helix needs no 1 kHz topic.
+        # The helix's angle from /saw/joint_states, used only while a motor drives it (its
+        # cycles are then helix turns, docs/motor.md). Subscribed from the start, before the
+        # simulator's parameters say whether a motor drives it: a subscription made when they
+        # arrive missed the first joint states whenever they came late (a busy machine), and
+        # the comparison then measured from a later start than the in-process campaign.
         self._helix = cdr.JointPosition('helix')
-        self._helix_sub = None
-        # 'ground truth matched' once /saw/pose has a publisher, said ready on /saw/ready
+        self._helix_followed = True
+        self._helix_sub = self.guard.subscribe(JointState, topics.JOINT_STATES, self._on_helix,
+                                               with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
+        # 'ground truth matched' once /saw/pose has a publisher (and /saw/joint_states, unless
+        # the simulator's parameters say no motor drives the helix), said ready on /saw/ready
         # (run_pipeline waits for it).
         self._readiness = Readiness(self)
         self._match_timer = self.create_timer(0.05, self._report_matched, clock=self._wall)
@@ -173,18 +179,15 @@ class ComparisonNode(Node):
         return True
 
     def _follow_helix(self, on: bool) -> None:
-        if on and self._helix_sub is None:
-            self._helix_sub = self.guard.subscribe(
-                JointState, topics.JOINT_STATES, self._on_helix,
-                with_depth(STREAM_QOS, INPUT_DEPTH), raw=True)
-        elif not on and self._helix_sub is not None:
-            self.destroy_subscription(self._helix_sub)
-            self._helix_sub = None
+        self._helix_followed = on
+        if not on:
             self.comparator.helix.clear()
 
     # -- data --------------------------------------------------------------------------------
     def _report_matched(self):
-        if self._truth_sub.get_publisher_count() > 0:
+        helix_matched = self._helix_sub.get_publisher_count() > 0 or (
+            self.simulator_parameters.known and not self._helix_followed)
+        if self._truth_sub.get_publisher_count() > 0 and helix_matched:
             self.get_logger().info('ground truth matched')
             self._readiness.announce()
             self._match_timer.cancel()
@@ -209,7 +212,8 @@ class ComparisonNode(Node):
         if angle is None:
             raise checks.Refused('no helix position', "no position for the joint 'helix'")
         checks.finite('helix position', (angle,))
-        self.comparator.add_helix(t_ns / NS_PER_S, angle)
+        if self._helix_followed:
+            self.comparator.add_helix(t_ns / NS_PER_S, angle)
 
     def _on_tracked(self, msg: PoseStamped):
         checks.frame(msg.header.frame_id, (topics.topic(topics.TRACKING_POSE).frame,))
