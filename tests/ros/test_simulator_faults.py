@@ -5,6 +5,7 @@ One node process per test in the run's isolated DDS domain; the test talks to it
 real set_parameters service and watches /clock and /diagnostics. Every wait is on a condition.
 """
 import math
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 import pytest
@@ -60,6 +61,13 @@ class Client:
         """Wait until the node has published ``count`` more steps; False if it did not."""
         start = self.clock_ns
         return self.wait(lambda: self.clock_ns >= start + count * 1_000_000, timeout)
+
+    def step_rate(self, count):
+        """Steps a second of wall time over the node's next ``count`` steps (0: none in 60 s)."""
+        start = time.monotonic()
+        if not self.steps_on(count, timeout=60.0):
+            return 0.0
+        return count / (time.monotonic() - start)
 
     def set_parameter(self, name, value):
         """Return (successful, reason) of one set_parameters call, which must be answered."""
@@ -148,6 +156,7 @@ def test_every_parameter_at_both_ends_of_its_range_and_one_past(simulator, clien
     """
     proc = simulator(real_time_factor=1.0)
     assert client.steps_on(100, timeout=30), proc.output()
+    start_rate = client.step_rate(1000)
     frozen = tuple(FROZEN)
     taken = []
     for name, default, meta in _parameters():
@@ -174,9 +183,11 @@ def test_every_parameter_at_both_ends_of_its_range_and_one_past(simulator, clien
     # Most ends are taken as they are (the rest need another parameter changed too: the
     # stiffnesses, a gap or max_penetration next to nothing, hertz_exponent 3 with kn 15 500).
     assert len(taken) >= 30, taken
-    # Still ~1 kHz at real-time factor 1: 2000 steps, every one received, within 3 s.
+    # Still at its first pace (~1 kHz at real-time factor 1 where the machine keeps up; beside
+    # other load, whatever the node kept before the sweep): 2000 steps, every one received.
     ticks = client.ticks
-    assert client.steps_on(2000, timeout=3.0), proc.output()[-3000:]
+    end_rate = client.step_rate(2000)
+    assert end_rate >= 0.5 * start_rate, (start_rate, end_rate, proc.output()[-3000:])
     assert client.ticks - ticks >= 2000
     assert 'Traceback' not in proc.output()
 
