@@ -148,7 +148,12 @@ def test_commands_drive_the_motor_bad_ones_are_refused_and_a_timeout_hands_back(
     effort = np.array([e for _, e in joints])
     jump = np.flatnonzero(np.diff(effort) > 0.5 * np.abs(effort).max())
     assert len(jump), 'no step in the motor torque after the command'
-    assert 0 < steps[jump[0] + 1] - sent_ns // 1_000_000 <= 100
+    # Not before the command was sent, and within 0.1 s of simulated time after the step that
+    # applied it (from the step it was sent on, the transport's delay on a busy machine counts
+    # too: 0.67 s beside two CPU hogs on the slower kind).
+    answered_ms = steps[jump[0] + 1]
+    assert sent_ns // 1_000_000 < answered_ms <= applied_ns // 1_000_000 + 100, (
+        sent_ns, applied_ns, answered_ms)
 
 
 def test_the_speed_controller_holds_its_target_on_ground_truth(ros_context, tmp_path):
