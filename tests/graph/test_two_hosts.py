@@ -145,7 +145,10 @@ def test_loadgen_and_recorder_on_two_hosts_lose_nothing(hosts, tmp_path):
     assert final.endswith('; lost 0'), final
     from saw_ros.bag import BagReader
     counts = {n: t.count for n, t in BagReader(str(out)).topics().items()}
-    assert counts == published and min(counts.values()) >= 2900
+    # Every message the generator published is in the bag. (How many it published in its 3 s
+    # is the machine's: 3000 a stream quiet, 2707 beside two CPU hogs on the slower kind; half
+    # is plenty to say that a 1 kHz stream crossed.)
+    assert counts == published and min(counts.values()) >= 1500, (counts, published)
 
 
 @pytest.mark.slow
