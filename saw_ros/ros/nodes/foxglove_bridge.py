@@ -18,6 +18,9 @@ and decodes them as it decodes foxglove_bridge's. The server is the Foxglove SDK
   streams) cost the bridge 0.12 of a core, now 0.09 (docs/measurements.md, issue 34 part C).
   A message reaches the clients up to BATCH_PERIOD later; its log time is the SDK's clock when
   the bridge hands it over. The commands (a client's own echo) keep a callback each.
+- The simulator's 1 kHz streams and /clock read best effort (``best_effort``): a reliable
+  reader cost the simulator's writers an acknowledgement protocol of its own, 20-26 us of a
+  step's CPU; best effort 8-10, and the client still gets every message on a working machine.
 - A topic is subscribed only while at least one client subscribes to its channel (as
   foxglove_bridge does): an idle bridge takes no message. Latched topics are subscribed afresh
   for each new client, so that it gets the last message too.
@@ -40,6 +43,7 @@ from typing import Any, Dict, List, Optional, Tuple
 
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from saw_ros.bag.schema import message_definition
 from saw_ros.core.params import spec_meta
@@ -210,7 +214,7 @@ class FoxgloveBridge(Node):
         channel = self.channels[name]
         qos = profile(entry.qos)
         if entry.qos in ('stream', 'clock'):
-            qos = with_depth(qos, INPUT_DEPTH)
+            qos = best_effort(with_depth(qos, INPUT_DEPTH))
 
         # The SDK's own log call (Channel.log checks the payload's type and the encoding in
         # Python first); no log time: the SDK stamps the message with its clock.
@@ -319,6 +323,22 @@ class FoxgloveBridge(Node):
         self.intake.destroy_node()
         self.get_logger().info(f'stopped: {self.forwarded} messages forwarded, {self.published} '
                                f'client commands published, {self.refused} refused')
+
+
+def best_effort(qos: QoSProfile) -> QoSProfile:
+    """
+    ``qos`` read best effort: what the bridge asks of the simulator's 1 kHz writers.
+
+    A reliable reader costs its writer an acknowledgement protocol of its own (heartbeats to
+    it, its ACKNACKs taken in by the writer's receive thread, a NACK-suppression timer on the
+    writer's event thread). The simulator's thread, the graph's limit at high real-time
+    factors, paid 20-26 us a step for a reliable bridge and 8-10 for a best-effort one
+    (docs/measurements.md, issue 34 part C). Nothing is repaired: a message the bridge's
+    process cannot take in (its shared-memory port queue full) is not sent again, which a
+    viewer survives and the graph's recordings, reliable, do not depend on.
+    """
+    return QoSProfile(history=qos.history, depth=qos.depth,
+                      reliability=ReliabilityPolicy.BEST_EFFORT, durability=qos.durability)
 
 
 def _never_called(_data: bytes) -> None:
