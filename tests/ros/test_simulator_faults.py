@@ -63,7 +63,7 @@ class Client:
         return self.wait(lambda: self.clock_ns >= start + count * 1_000_000, timeout)
 
     def step_rate(self, count):
-        """Steps a second of wall time over the node's next ``count`` steps (0: none in 60 s)."""
+        """Return the steps a second of wall time over the next ``count`` (0: none in 60 s)."""
         start = time.monotonic()
         if not self.steps_on(count, timeout=60.0):
             return 0.0
