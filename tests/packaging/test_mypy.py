@@ -44,6 +44,9 @@ def test_mypy(tmp_path):
 
 def test_the_strict_layers_are_checked_strictly(tmp_path):
     """The config's strict section reaches core and interface: an unannotated def fails there."""
+    # One cache for the three runs (the same config): the standard library's stubs are analysed
+    # once, not three times (13 -> 5 s).
+    cache = tmp_path / 'cache'
     for layer, fails in (('core', True), ('interface', True), ('vision', False)):
         pkg = tmp_path / layer / 'saw_ros' / layer
         pkg.mkdir(parents=True)
@@ -53,5 +56,5 @@ def test_the_strict_layers_are_checked_strictly(tmp_path):
         ini = tmp_path / layer / 'mypy.ini'
         ini.write_text(config())
         out, _, _ = api.run(['--config-file', str(ini), '--no-error-summary', '--cache-dir',
-                             str(tmp_path / layer / 'cache'), str(pkg / 'probe.py')])
+                             str(cache), str(pkg / 'probe.py')])
         assert ('Function is missing a type annotation' in out) == fails, (layer, out)
