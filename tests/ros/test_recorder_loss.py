@@ -130,3 +130,40 @@ def test_recorder_reports_what_was_published_before_it_matched(tmp_path, ros_con
     assert f', {sum(at_start.values())} of them at the start (' in final, final
     assert 'published before the subscriptions matched' in rec.output()
     node.destroy_node()
+
+
+def test_close_records_what_the_subscriptions_still_hold(tmp_path, ros_context):
+    """
+    The messages that came after the executor's last round are written at close, not dropped.
+
+    The recorder is never spun here: every message is still in its subscription's queue when
+    ``close`` drains it (that drain took nothing before: the handle's ``with`` gives None).
+    """
+    from rclpy.duration import Duration
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from saw_ros.ros.nodes.recorder import Recorder
+    from std_msgs.msg import String
+    topic = '/saw/drain_check'
+    talker = Node('drain_talker', context=ros_context)
+    publisher = talker.create_publisher(
+        String, topic, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    recorder = Recorder(context=ros_context, parameter_overrides=[
+        Parameter('output', value=str(tmp_path / 'bag')), Parameter('topics', value=[topic])])
+    try:
+        # Discovery by hand (its timer is the executor's): subscribed once the topic is seen.
+        assert wait_for(lambda: recorder._discover() or (
+            recorder._subs.get(topic) and publisher.get_subscription_count() > 0), 20)
+        for i in range(20):
+            publisher.publish(String(data=str(i)))
+        assert publisher.wait_for_all_acked(Duration(seconds=20))
+        recorder.close()
+    finally:
+        recorder.destroy_node()
+        talker.destroy_node()
+    got = [m.data for _, m in BagReader(str(tmp_path / 'bag')).decoded_messages([topic])]
+    assert got == [str(i) for i in range(20)]
+    meta = yaml.safe_load((tmp_path / 'bag' / 'metadata.yaml').read_text())
+    assert json.loads(meta['rosbag2_bagfile_information']['custom_data'][
+        'saw_ros.lost_messages']) == {topic: 0}

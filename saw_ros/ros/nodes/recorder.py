@@ -261,8 +261,8 @@ def request_qos(offers: List, depth: int) -> QoSProfile:
 
 
 class Recorder(Node):
-    def __init__(self):
-        super().__init__('recorder')
+    def __init__(self, **kwargs):
+        super().__init__('recorder', **kwargs)
         from saw_ros.ros.params import declare_spec
         try:
             # All read once, here: read-only, so that `ros2 param set` is refused with the
@@ -415,7 +415,8 @@ class Recorder(Node):
             if holder is None:
                 continue
             try:
-                with holder['sub'].handle as handle:
+                handle = holder['sub'].handle
+                with handle:    # (its __enter__ returns None, not the handle)
                     while True:
                         got = handle.take_message(holder['type'], True)
                         if got is None:
