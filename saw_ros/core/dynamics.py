@@ -40,11 +40,11 @@ from saw_ros.core.flexure import FLEX_ON, flex_restore, FLEX_ROWS, flex_walls, F
 from saw_ros.core.flexure import flexure_constants
 from saw_ros.core.flexure import RATE as FLEX_RATE
 from saw_ros.core.jit import CACHE
-from saw_ros.core.kinematics import check_no_interference, place_tips, TipRateTable, TipTable
-from saw_ros.core.kinematics import turned_table_value
+from saw_ros.core.kinematics import check_no_interference, TipRateTable, TipTable
 from saw_ros.core.motor import MOTOR_FIELDS, MotorLaw, TORQUE_CONSTANT, turn_helix
 from saw_ros.core.params import ParameterError, PLACEMENT_SHARE, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
+from saw_ros.core.tips import place_tips, turned_table_value
 from saw_ros.core.walls import ACTIVE, bend_walls, LARGEST, WALL_FIELDS, WALL_ROWS, Walls
 from saw_ros.core.walls import WORK_ROWS
 

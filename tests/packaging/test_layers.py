@@ -99,6 +99,19 @@ print(bad)
     assert result.stdout.strip() == '[]'
 
 
+def test_the_nodes_that_do_not_step_the_physics_start_without_numba():
+    """Camera, vision and comparison read the core's tables, not its kernels (core.tips)."""
+    code = """
+import sys
+import saw_ros.ros.nodes.camera, saw_ros.ros.nodes.comparison, saw_ros.ros.nodes.vision
+print(sorted(m for m in sys.modules if m.split('.')[0] in ('numba', 'llvmlite')))
+"""
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == '[]', result.stdout[:500]
+
+
 def test_the_readme_names_the_layers_as_this_test_does():
     text = ' '.join((PACKAGE.parent / 'README.md').read_text().split())
     below_ros = re.search(r'Imports point down only: (.*?) are the pure layers below `ros`', text)
