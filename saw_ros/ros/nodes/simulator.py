@@ -23,8 +23,9 @@ behind real time (never skipping or repeating a step) and says so, at most every
 works for at most ``BATCH_BUDGET`` of wall time (and ``MAX_BATCH`` steps) so that parameter
 changes and ~/reset are served in between.
 
-Loss. The node publishes every step once, in order, reliably. Reliable KEEP_LAST queues do not
-slow the publisher down, though: a subscriber that cannot keep up with the rate (rtf x 5100
+Loss. The node publishes every step once, in order, reliably (the 1 kHz topics' messages of a
+wake-up's steps at its end, topic after topic: ``_publish_batch``). Reliable KEEP_LAST queues do
+not slow the publisher down, though: a subscriber that cannot keep up with the rate (rtf x 5100
 messages/s) loses the oldest messages of its queue. Publisher acknowledgements cannot prevent
 that (a KEEP_LAST reader acknowledges what it then drops, and Fast DDS acknowledges in bursts,
 0-2 s late), so there is no back-pressure: pick a real_time_factor the subscribers sustain
@@ -156,9 +157,9 @@ class SimulatorNode(Node):
             for topic, msg_type in TOPICS.items())
         # Each step's messages go straight to the publishers' handles: they are bytes, and
         # Publisher.publish's type checks and handle guard cost as much as the write itself.
-        (self._publish_clock, self._publish_pose, self._publish_twist, self._publish_contacts,
-         self._publish_wrench, self._publish_joints) = (
-            p.handle.publish_raw for p in self._publishers_all)
+        self._stream_publishers = tuple(p.handle.publish_raw for p in self._publishers_all)
+        # The 1 kHz messages of the steps of one wake-up, per topic (_publish_batch).
+        self._batch: tuple = tuple([] for _ in self._publishers_all)
         self._joints_every = max(1, int(round(
             1.0 / (float(self.get_parameter('joint_states_rate').value) * self.dt))))
         self._contacts_cdr = conv.ContactsCdr()
@@ -331,10 +332,13 @@ class SimulatorNode(Node):
             todo = min(todo, end - self.steps)
         todo = min(todo, MAX_BATCH)
         deadline = now + BATCH_BUDGET
-        for _ in range(todo):
-            self.step_and_publish()
-            if time.monotonic() > deadline:
-                break
+        try:
+            for _ in range(todo):
+                self._step()
+                if time.monotonic() > deadline:
+                    break
+        finally:
+            self._publish_batch()
         if end >= 0 and self.steps >= end:
             self.finished = True
             self.get_logger().info(f'duration {self._duration:g} s reached after {self.steps} '
@@ -355,6 +359,24 @@ class SimulatorNode(Node):
 
     def step_and_publish(self) -> None:
         """One physics step, then its messages, all stamped (steps + 1) * dt."""
+        self._step()
+        self._publish_batch()
+
+    def _publish_batch(self) -> None:
+        """
+        Publish the batch's 1 kHz messages, topic after topic, each topic's in step order.
+
+        One topic's messages back to back: a reader's shared-memory thread then takes several
+        a wake-up, where one message a step from each topic in turn woke every reader once a
+        message (the writer pays each wake-up too; docs/measurements.md, issue 34 part C).
+        """
+        for publish, messages in zip(self._stream_publishers, self._batch):
+            for data in messages:
+                publish(data)
+            messages.clear()
+
+    def _step(self) -> None:
+        """One physics step; its 1 kHz messages join the batch, the others go out at once."""
         sim = self.sim
         self.commands.poll()
         # Every step, not once a batch: a node catching up steps up to MAX_BATCH at a time, and
@@ -383,18 +405,19 @@ class SimulatorNode(Node):
         fx, fy = conv.body_axes(fx, fy, theta)
         driven = bool(sim.driven[0])
         # Serialized messages (conversions' CDR encoders): ten times cheaper to publish.
-        self._publish_clock(conv.clock_cdr(ns))
-        self._publish_pose(conv.pose_cdr(x, y, theta, ns))
-        self._publish_twist(conv.twist_cdr(vx, vy, w, ns))
-        self._publish_contacts(self._contacts_cdr(points, ns))
-        self._publish_wrench(conv.wrench_cdr(fx, fy, mz, ns))
+        clock, pose, twist, contacts_out, wrench, joints = self._batch
+        clock.append(conv.clock_cdr(ns))
+        pose.append(conv.pose_cdr(x, y, theta, ns))
+        twist.append(conv.twist_cdr(vx, vy, w, ns))
+        contacts_out.append(self._contacts_cdr(points, ns))
+        wrench.append(conv.wrench_cdr(fx, fy, mz, ns))
         if self.steps % self._joints_every == 0:
             # The helix's speed and torque are the core's: constant, or the motor's under load.
             omega = float(sim.omega[0])
             # The links' flexures (core.flexure): their deflections, 0 for rigid links.
             values, rates = self._joints.values_and_rates(
                 float(sim.phase[0]), omega, sim.deflection[0], sim.deflection_rate[0])
-            self._publish_joints(self._joints_cdr(
+            joints.append(self._joints_cdr(
                 float(sim.phase[0]), omega, values, rates, ns,
                 float(sim.motor_torque[0]) if driven else None))
         if self.steps % self._motor_every == 0:
