@@ -21,6 +21,10 @@ and decodes them as it decodes foxglove_bridge's. The server is the Foxglove SDK
 - The simulator's 1 kHz streams and /clock read best effort (``best_effort``): a reliable
   reader cost the simulator's writers an acknowledgement protocol of its own, 20-26 us of a
   step's CPU; best effort 8-10, and the client still gets every message on a working machine.
+  What DDS loses on the way in (the bridge's process without CPU for longer than its
+  shared-memory queue holds) is counted, logged and sent to the clients as a status; the
+  reliable reader before lost as much when stopped, silently (it takes from a history of
+  the last messages only).
 - A topic is subscribed only while at least one client subscribes to its channel (as
   foxglove_bridge does): an idle bridge takes no message. Latched topics are subscribed afresh
   for each new client, so that it gets the last message too.
@@ -41,7 +45,8 @@ import queue
 import time
 from typing import Any, Dict, List, Optional, Tuple
 
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import QoSSubscriptionEventType, SubscriptionEventCallbacks
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -49,7 +54,7 @@ from saw_ros.bag.schema import message_definition
 from saw_ros.core.params import spec_meta
 from saw_ros.interface import topics
 from saw_ros.ros.params import declare_spec, yaml_text
-from saw_ros.ros.qos import INPUT_DEPTH, message_class, profile, publisher_profile, with_depth
+from saw_ros.ros.qos import message_class, profile, publisher_profile, with_depth
 from saw_ros.ros.runtime import NodeFailure, run_module, run_node
 
 PARAMETERS = (
@@ -66,11 +71,24 @@ PARAMETERS = (
 # Not offered: the raw frames (the compressed ones are the camera's stream here).
 NOT_SERVED = (topics.IMAGE,)
 COMMAND_TOPICS = tuple(t.name for t in topics.TOPICS if t.qos == 'command')
-WARN_EVERY = 5.0        # s of wall time between two warnings about refused client messages
+WARN_EVERY = 5.0        # s of wall time between two warnings (refused or lost messages)
 POLL_PERIOD = 0.05      # s between two looks at the clients' (un)subscriptions
-# s between two takes of the subscriptions' queues (INPUT_DEPTH = 1 s of a 1 kHz stream, 30
+# s between two takes of the subscriptions' queues (STREAM_DEPTH = 5 s of a 1 kHz stream, 30
 # frames of the camera's): a viewer drawing at 60 Hz sees no difference; 20 ms saved little more.
 BATCH_PERIOD = 0.01
+LOST_CHECK_PERIOD = 1.0     # s between two looks at what DDS says the streams lost on the way in
+# History of a best-effort stream's subscription: deeper than the shared-memory port queue
+# (4096 messages in msg_config/fastdds.xml), so that what the port hands on in one burst after
+# the bridge went without CPU never overwrites a message not yet taken. A message is then lost
+# only at the port, and DDS counts it (a gap in the writer's sequence numbers): with 1000, a
+# bridge stopped for 0.6 s while 20 000 poses went out lost 577 of them uncounted
+# (tests/ros/test_foxglove_bridge.py). Memory only while the bridge is behind.
+STREAM_DEPTH = 5000
+# Messages the SDK's server queues for a client before it drops the oldest (its default 1024,
+# silently: the SDK 0.30 tells its caller nothing). A bridge that catches up after going without
+# CPU hands on a port queue's worth at once (4096 and more); with 1024, a client took 48 of them
+# too few in the stopped-bridge test under load 12. Memory only while a client is behind.
+CLIENT_BACKLOG = 16384
 
 YAML_HEADER = """\
 Parameters of the saw_ros Foxglove bridge (every topic over the Foxglove WebSocket protocol):
@@ -135,6 +153,9 @@ class FoxgloveBridge(Node):
         self.forwarded = 0          # messages passed to the server
         self.published = 0          # client commands published
         self.refused = 0
+        self.lost: Dict[str, int] = {}      # topic -> messages DDS lost before the bridge
+        self._lost_unlogged = 0
+        self._last_lost_warning = -math.inf
         self._refused_unlogged = 0
         self._last_warning = -math.inf
         self.command_publishers = {}
@@ -147,7 +168,7 @@ class FoxgloveBridge(Node):
             self.server = foxglove.start_server(
                 name='saw_ros', host=p['address'], port=p['port'],
                 capabilities=[Capability.ClientPublish], supported_encodings=['cdr'],
-                server_listener=_Listener(self))
+                server_listener=_Listener(self), message_backlog_size=CLIENT_BACKLOG)
         except Exception as exc:  # noqa: BLE001  (the SDK raises its own error types)
             raise NodeFailure(f'cannot serve on {p["address"]}:{p["port"]}: {exc}') from None
         self.url = f'ws://{p["address"]}:{self.server.port}'
@@ -168,8 +189,11 @@ class FoxgloveBridge(Node):
                            use_global_arguments=False, enable_rosout=False,
                            start_parameter_services=False)
         self.batched: Dict[str, Tuple[Any, Any, Any]] = {}    # topic -> handle, type, log
+        # topic -> its subscription's message-lost event, read by polling (nothing spins it)
+        self.lost_events: Dict[str, Any] = {}
         self._batch_timer = self.create_timer(BATCH_PERIOD, self._take_batches)
         self._batch_timer.cancel()          # running only while a client subscribes
+        self.create_timer(LOST_CHECK_PERIOD, self._check_lost)
         self.get_logger().info(
             f'Foxglove WebSocket on {self.url}: {len(self.channels)} topics; clients may '
             f'publish on {", ".join(COMMAND_TOPICS)} only (Foxglove: Open connection > Foxglove '
@@ -214,7 +238,7 @@ class FoxgloveBridge(Node):
         channel = self.channels[name]
         qos = profile(entry.qos)
         if entry.qos in ('stream', 'clock'):
-            qos = best_effort(with_depth(qos, INPUT_DEPTH))
+            qos = best_effort(with_depth(qos, STREAM_DEPTH))
 
         # The SDK's own log call (Channel.log checks the payload's type and the encoding in
         # Python first); no log time: the SDK stamps the message with its clock.
@@ -227,6 +251,11 @@ class FoxgloveBridge(Node):
             subscription = self.intake.create_subscription(
                 msg_type, name, _never_called, qos, raw=True, event_callbacks=no_events)
             self.batched[name] = (subscription.handle, msg_type, log)
+            if qos.reliability == ReliabilityPolicy.BEST_EFFORT:
+                with subscription.handle:
+                    self.lost_events[name] = _rclpy.EventHandle(
+                        subscription.handle,
+                        QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST)
         else:
             def forward(data: bytes) -> None:
                 log(data)
@@ -244,6 +273,10 @@ class FoxgloveBridge(Node):
             # A latched topic is subscribed afresh for each new client: what the old
             # subscription holds is still for the clients already watching.
             self._take(*batch)
+            event = self.lost_events.pop(name, None)
+            if event is not None:
+                self._count_lost(name, event)
+                event.destroy_when_not_in_use()
             self.intake.destroy_subscription(subscription)
         else:
             self.destroy_subscription(subscription)
@@ -264,6 +297,46 @@ class FoxgloveBridge(Node):
                 log(got[0])
                 taken += 1
         self.forwarded += taken
+
+    def _check_lost(self) -> None:
+        for name, event in self.lost_events.items():
+            self._count_lost(name, event)
+        self._warn_lost()
+
+    def _count_lost(self, name: str, event) -> None:
+        """
+        Add what DDS says a best-effort stream lost since the last look.
+
+        Fast DDS counts a best-effort reader's gaps in the writer's sequence numbers: the
+        messages that never reached the bridge's process (its shared-memory queue full while
+        it went without CPU). The clients miss them, so they are told (``_warn_lost``).
+        """
+        with event:
+            change = event.take_event().total_count_change
+        if change > 0:
+            self.lost[name] = self.lost.get(name, 0) + change
+            self._lost_unlogged += change
+
+    def _warn_lost(self) -> None:
+        """Log and send the clients the losses not yet told, at most once per WARN_EVERY."""
+        now = time.monotonic()
+        if not self._lost_unlogged or now - self._last_lost_warning < WARN_EVERY:
+            return
+        text = (f'{self._lost_unlogged} message(s) lost before the bridge since the last '
+                'warning (read best effort, not sent again): the clients miss them. Total so '
+                'far: ' + ', '.join(f'{k} {v}' for k, v in self.lost.items()))
+        self.get_logger().warning(text)
+        self._status(f'saw_ros bridge: {text}')
+        self._last_lost_warning = now
+        self._lost_unlogged = 0
+
+    def _status(self, message: str) -> None:
+        """Send the clients a warning status (one they miss changes nothing here)."""
+        try:
+            from foxglove import StatusLevel
+            self.server.publish_status(message, StatusLevel.Warning)
+        except Exception:  # noqa: BLE001,S110  (a status the clients miss changes nothing here)
+            pass
 
     # -- commands in: the command topic only ----------------------------------------------
     def advertised(self, client: int, channel) -> None:
@@ -306,23 +379,25 @@ class FoxgloveBridge(Node):
         more = f' ({self._refused_unlogged} more refused since the last warning)' \
             if self._refused_unlogged else ''
         self.get_logger().warning(f'refused, not published: {reason}{more}')
-        try:
-            from foxglove import StatusLevel
-            self.server.publish_status(f'saw_ros bridge refused: {reason}', StatusLevel.Warning)
-        except Exception:  # noqa: BLE001,S110  (a status the clients miss changes nothing here)
-            pass
+        self._status(f'saw_ros bridge refused: {reason}')
         self._last_warning = now
         self._refused_unlogged = 0
 
     def close(self) -> None:
         try:
             self._take_batches()        # what came since the last batch
+            self._check_lost()
         except Exception as exc:  # noqa: BLE001  (the context already gone: nothing to take)
             self.get_logger().debug(f'last batch not taken: {exc}')
         self.server.stop()
+        for event in self.lost_events.values():
+            event.destroy_when_not_in_use()
         self.intake.destroy_node()
-        self.get_logger().info(f'stopped: {self.forwarded} messages forwarded, {self.published} '
-                               f'client commands published, {self.refused} refused')
+        lost = sum(self.lost.values())
+        self.get_logger().info(
+            f'stopped: {self.forwarded} messages forwarded, {self.published} client commands '
+            f'published, {self.refused} refused, {lost} lost before the bridge' + (
+                ' (' + ', '.join(f'{k} {v}' for k, v in self.lost.items()) + ')' if lost else ''))
 
 
 def best_effort(qos: QoSProfile) -> QoSProfile:
