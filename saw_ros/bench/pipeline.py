@@ -40,8 +40,8 @@ ladder that records the images. ``pipeline_bridge_``: the first ladder again wit
 bridge in the graph and one client (saw_ros.graph.foxglove_client, in this process) subscribed to
 every channel it serves, the client's receiving nothing failing the rung (issue 34's goal: at
 most 10 % below ``pipeline_max_realtime_factor``); its CPU shares add ``bench_client``, this
-process's own (the client's thread), which ``cpu_total`` leaves out; ``bridge_command_latency_ms`` (median) and
-``_max``: round trips of a command sent by that client every 0.1 s at the 1.0 rung, client ->
+process's own (the client's thread), which ``cpu_total`` leaves out;
+``bridge_command_latency_ms`` (median) and ``_max``: round trips of a command sent by that client every 0.1 s at the 1.0 rung, client ->
 bridge -> /saw/motor_controller/commands -> the bridge's own subscription -> client (an upper
 bound of the way from a Foxglove panel to the simulator's input; the command is the helix
 frequency the run has anyway). Two shared cores: figures are noisy.
