@@ -44,7 +44,8 @@ process's own (the client's thread), which ``cpu_total`` leaves out;
 ``bridge_command_latency_ms`` (median) and ``_max``: round trips of a command sent by that
 client every 0.1 s at the 1.0 rung, client -> bridge -> /saw/motor_controller/commands -> the
 bridge's own subscription -> client (an upper bound of the way from a Foxglove panel to the
-simulator's input; the command is the helix frequency the run has anyway). Two shared cores: figures are noisy.
+simulator's input; the command is the helix frequency the run has anyway). Two shared cores:
+figures are noisy.
 Each rung's folder (node logs, comparison.json; the bag and video only when the rung failed) is
 kept in ``log_dir('pipeline')/rtf_<factor>/``; a graph that does not finish in time, or
 artefacts that cannot be read, make a failed rung, never a crashed bench.
