@@ -39,8 +39,8 @@ while the simulator stepped at real-time factor 1.0; the same with ``pipeline_im
 ladder that records the images. ``pipeline_bridge_``: the first ladder again with the Foxglove
 bridge in the graph and one client (saw_ros.graph.foxglove_client, in this process) subscribed to
 every channel it serves, the client's receiving nothing failing the rung (issue 34's goal: at
-most 10 % below ``pipeline_max_realtime_factor``); its CPU shares add ``bench_client``, this
-process's own (the client's thread), which ``cpu_total`` leaves out;
+most 10 % below ``pipeline_max_realtime_factor``); its CPU shares add ``bench_client``, the
+client's threads in this process, which ``cpu_total`` leaves out;
 ``bridge_command_latency_ms`` (median) and ``_max``: round trips of a command sent by that
 client every 0.1 s at the 1.0 rung, client -> bridge -> /saw/motor_controller/commands -> the
 bridge's own subscription -> client (an upper bound of the way from a Foxglove panel to the
@@ -108,14 +108,24 @@ def _proc_table() -> Dict[int, tuple]:
     return table
 
 
+def _thread_cpu(tid: int) -> float:
+    """CPU seconds of one of this process's threads (0 once it has ended)."""
+    try:
+        with open(f'/proc/self/task/{tid}/stat') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 class CpuSampler:
     """Samples the CPU seconds of every descendant of this process, per node name."""
 
-    def __init__(self, bench_client: bool = False):
-        """``bench_client``: also this process's own CPU, as 'bench_client' (BridgeClient's)."""
+    def __init__(self, client_threads=None):
+        """``client_threads``: returns ids of this process's threads to add as 'bench_client'."""
         self.samples: List[tuple] = []        # (epoch s, {node: cpu s})
         self.root = os.getpid()
-        self.bench_client = bench_client
+        self.client_threads = client_threads
 
     def __call__(self) -> None:
         table = _proc_table()
@@ -129,9 +139,9 @@ class CpuSampler:
                 up, seen = table[up][0], seen + 1
             if up == self.root:
                 per_node[node] = per_node.get(node, 0.0) + cpu
-        if self.bench_client and self.root in table:
-            # The Foxglove client's thread; the rest of this process samples and waits.
-            per_node['bench_client'] = table[self.root][1]
+        if self.client_threads is not None:
+            # The Foxglove client's threads alone (this process also samples, as this does).
+            per_node['bench_client'] = sum(_thread_cpu(tid) for tid in self.client_threads())
         self.samples.append((time.time(), per_node))
 
     def share(self, start: float, end: float) -> Dict[str, float]:
@@ -176,6 +186,7 @@ class BridgeClient:
         self.timeout = timeout
         self.client: Any = None      # a FoxgloveClient once connected
         self.round_trips_ms: List[float] = []
+        self.watcher_tid: Optional[int] = None
         self.problem = ''
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -194,6 +205,8 @@ class BridgeClient:
         from saw_ros.graph.foxglove_client import connect_when_up
         from saw_ros.graph.process import wait_for
         from saw_ros.ros.qos import message_class
+        import threading
+        self.watcher_tid = threading.get_native_id()
         served = {t.name for t in topics.TOPICS} - {topics.IMAGE}
         client = connect_when_up(self.url, self.timeout, keep=[topics.MOTOR_COMMANDS])
         if client is None:
@@ -216,6 +229,11 @@ class BridgeClient:
             if wait_for(lambda: len(echoes) > seen or self._stop.is_set(), 5.0, poll=0.0005) \
                     and len(echoes) > seen:
                 self.round_trips_ms.append((echoes[seen][1] - sent) * 1e3)
+
+    def thread_ids(self) -> List[int]:
+        """Return the ids of the client's threads (reader, this watcher) started so far."""
+        reader = self.client.reader_tid if self.client is not None else None
+        return [tid for tid in (self.watcher_tid, reader) if tid is not None]
 
     def stop(self) -> dict:
         """Stop; return what the client received and the commands' round trips."""
@@ -355,10 +373,10 @@ def measure(rtf: float, duration: float, work: Path, record_topics: Optional[Lis
     from saw_ros.interface.config import config_path
     from saw_ros.graph.pipeline import PipelineError, run_pipeline
     out = work / f'rtf_{rtf:g}'
-    sampler = CpuSampler(bench_client=bridge)
     start = time.monotonic()
     port = free_port() if bridge else None
     watcher = BridgeClient(port, 60.0) if port else None
+    sampler = CpuSampler(watcher.thread_ids if watcher is not None else None)
     try:
         run = run_pipeline(out, duration, rtf, bag_dir=out / 'bag', progress=sampler,
                            timeout=30.0 + 4.0 * duration / rtf, record_topics=record_topics,

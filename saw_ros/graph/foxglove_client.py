@@ -53,11 +53,13 @@ class FoxgloveClient:
         self._next_id = 1
         self._lock = threading.Lock()
         self.closed = False
+        self.reader_tid: Optional[int] = None     # the reading thread's id (its CPU in /proc)
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
 
     def _read(self) -> None:
         from websockets.exceptions import ConnectionClosed
+        self.reader_tid = threading.get_native_id()
         try:
             for frame in self.ws:
                 if isinstance(frame, str):
