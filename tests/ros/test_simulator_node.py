@@ -222,7 +222,14 @@ def test_weight_parameters_reset_and_sigterm(start_simulator, watcher):
     good = watcher.set_parameter('conditions.frequency', 2.0)
     assert good.successful, good.reason
     changed = watcher.count(table.POSE)
-    assert watcher.wait(lambda: watcher.count(table.POSE) >= changed + 1000, 20)
+    # Until the robot has advanced 6 cm (read from the newest pose, not from a count of poses:
+    # a reader running behind the node saw the change take effect late, and a reset 1000 poses
+    # later came when the robot had moved less than the jump this test looks for).
+
+    def advanced():
+        newest = watcher.raw[table.POSE][-1]
+        return deserialize_message(newest, _type(table.POSE)).pose.position.x > 0.06
+    assert watcher.wait(advanced, 60), 'the wave did not move the robot 6 cm'
 
     # Reset: the robot back at its start; time goes on.
     answer = watcher.call(Trigger, '/simulator/reset', Trigger.Request())
