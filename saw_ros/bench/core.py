@@ -4,8 +4,9 @@ Physics core throughput (the compiled kernels, issue 30): one scenario, batches,
 - ``core_steps_per_s``: one scenario stepped by ``Simulator.run`` (the loop over steps inside
   the kernel, as simulate, the campaign and the figures step it); ``core_step_calls_per_s``:
   one ``Simulator.step()`` call a step, the simulator node's path at 1 kHz.
-- ``batch_scenario_steps_per_s``: the 256-scenario sweep in one ``simulate`` call (prange over
-  both cores); ``batch_single_process_scenario_steps_per_s``: the same on one thread;
+- ``batch_scenario_steps_per_s``: the 256-scenario sweep in one ``simulate`` call (spread over
+  a thread a core, ``dynamics.spread``); ``batch_single_process_scenario_steps_per_s``: the same
+  on one thread;
   ``batch_pool_scenario_steps_per_s``: the same cut in two by the local process pool.
 - ``batch_scaling_4096_ratio``: one process stepping 1, 16, 256, 1024 and 4096 scenarios of the
   sweep (repeated) on one thread, 4096 against the best size of the same run

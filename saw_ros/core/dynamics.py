@@ -19,9 +19,12 @@ refuses a motor too light for the step, its load torque being explicit).
 """
 from __future__ import annotations
 
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 import functools
 import math
+import os
 import threading
 from typing import Any, Callable, cast, Optional, Sequence, Tuple, Union
 
@@ -76,8 +79,10 @@ DRIVEN, CONSTANT_OMEGA, RUNAWAY_SPEED, MOTOR_ON, PROFILED = range(7, 12)
 CONSTANT_FIELDS = 12
 # Columns of the recorded trace: the pose and its rates, helix speed, motor torque, current.
 TRACE_FIELDS = 9
-# Scenario-steps in one kernel call from which the parallel kernel is faster (bench/core.py).
+# Scenario-steps in one call from which a batch spread over threads is faster (bench/core.py).
 PARALLEL_WORK = 2048
+# Parts of a batch a thread (``spread``): enough for the threads to even out, few calls.
+PARTS_PER_THREAD = 4
 
 
 @numba.njit(cache=CACHE)
@@ -242,32 +247,68 @@ def advance_scenario(s: int, steps: int, first: int, every: int, dt: float, scal
 
 
 @numba.njit(cache=CACHE, nogil=True)
-def advance(steps: int, first: int, every: int, dt: float, scale: float, side: np.ndarray,
-            table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray, drive: np.ndarray,
-            law: np.ndarray, motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-            wall_state: np.ndarray, wall_modes: np.ndarray, flex: np.ndarray,
+def advance(start: int, stop: int, steps: int, first: int, every: int, dt: float, scale: float,
+            side: np.ndarray, table: np.ndarray, rates: np.ndarray, harmonics: np.ndarray,
+            drive: np.ndarray, law: np.ndarray, motor: np.ndarray, constants: np.ndarray,
+            walls: np.ndarray, wall_state: np.ndarray, wall_modes: np.ndarray, flex: np.ndarray,
             flex_state: np.ndarray, body: np.ndarray, tips: np.ndarray, trace: np.ndarray,
             trace_tips: np.ndarray) -> None:
-    """Advance every scenario by ``steps`` (``advance_scenario``), one after the other."""
-    for s in range(body.shape[0]):
+    """
+    Advance scenarios ``start`` to ``stop`` - 1 by ``steps`` each, one after the other (kernel).
+
+    Without the GIL: the threads of ``spread`` run parts of one batch at once (the scenarios
+    write no state they share).
+    """
+    for s in range(start, stop):
         advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
                          drive, law, motor, constants, walls, wall_state, wall_modes, flex,
                          flex_state, body, tips, trace, trace_tips)
 
 
-@numba.njit(cache=CACHE, parallel=True)
-def advance_in_parallel(steps: int, first: int, every: int, dt: float, scale: float,
-                        side: np.ndarray, table: np.ndarray, rates: np.ndarray,
-                        harmonics: np.ndarray, drive: np.ndarray, law: np.ndarray,
-                        motor: np.ndarray, constants: np.ndarray, walls: np.ndarray,
-                        wall_state: np.ndarray, wall_modes: np.ndarray, flex: np.ndarray,
-                        flex_state: np.ndarray, body: np.ndarray, tips: np.ndarray,
-                        trace: np.ndarray, trace_tips: np.ndarray) -> None:
-    """``advance`` with the scenarios spread over the cores (numba's prange)."""
-    for s in numba.prange(body.shape[0]):
-        advance_scenario(s, steps, first, every, dt, scale, side, table, rates, harmonics,
-                         drive, law, motor, constants, walls, wall_state, wall_modes, flex,
-                         flex_state, body, tips, trace, trace_tips)
+# The helper threads of ``spread``, made at the first batch a process spreads; a forked child
+# (LocalPool) makes its own, threads do not survive a fork: (process id, threads, executor).
+_helpers: Optional[Tuple[int, int, ThreadPoolExecutor]] = None
+_helpers_lock = threading.Lock()
+
+
+def helper_threads(count: int) -> ThreadPoolExecutor:
+    """Return this process's pool of at least ``count`` helper threads."""
+    global _helpers
+    with _helpers_lock:
+        if _helpers is None or _helpers[0] != os.getpid() or _helpers[1] < count:
+            _helpers = (os.getpid(), count,
+                        ThreadPoolExecutor(count, thread_name_prefix='saw_ros_core'))
+        return _helpers[2]
+
+
+def spread(count: int, threads: int, arguments: Tuple[Any, ...]) -> None:
+    """
+    Run ``advance`` over scenarios 0 to ``count`` - 1 on ``threads`` threads, this one among them.
+
+    The batch is cut into PARTS_PER_THREAD parts a thread, each taken by whichever thread is
+    free: scenarios differ in cost (bending walls take two to three rigid steps; a scenario
+    that leaves the model stops), so a fixed share each would leave a thread waiting. Python
+    threads, not numba's prange: a prange kernel compiles the whole step a second time (some
+    10 of the cold start's 26 s of CPU), for no more scenario-steps (docs/core.md).
+    """
+    size = -(-count // (threads * PARTS_PER_THREAD))
+    parts = deque((a, min(a + size, count)) for a in range(0, count, size))
+
+    def work() -> None:
+        while True:
+            try:
+                start, stop = parts.popleft()            # atomic: no lock needed
+            except IndexError:
+                return
+            advance(start, stop, *arguments)
+
+    helpers = [helper_threads(threads - 1).submit(work) for _ in range(threads - 1)]
+    try:
+        work()
+    finally:
+        parts.clear()                                   # an error here stops the helpers too
+        for helper in helpers:
+            helper.result()
 
 
 class DivergenceError(RuntimeError):
@@ -624,12 +665,18 @@ class Simulator:
     def _advance(self, steps: int, first: int, every: int, trace: np.ndarray,
                  trace_tips: np.ndarray) -> None:
         """Advance every scenario ``steps`` steps in one kernel call."""
-        # Spread over the cores when there is enough to share: a parallel call costs more to
-        # start than one scenario's step.
-        parallel = (self.count > 1 and self.count * steps >= PARALLEL_WORK
-                    and threading.current_thread() is threading.main_thread())
-        kernel: Callable[..., None] = advance_in_parallel if parallel else advance
-        kernel(steps, first, every, *self._kernel_arguments(), trace, trace_tips)
+        arguments = (steps, first, every, *self._kernel_arguments(), trace, trace_tips)
+        # Spread over the cores when there is enough to share (waking a thread costs more than
+        # one scenario's step), and from the main thread only: a thread of a pool (Dask's
+        # workers) already has its share of the cores. numba.set_num_threads says how many.
+        threads = 1
+        if (self.count > 1 and self.count * steps >= PARALLEL_WORK
+                and threading.current_thread() is threading.main_thread()):
+            threads = min(numba.get_num_threads(), self.count)
+        if threads > 1:
+            spread(self.count, threads, arguments)
+        else:
+            advance(0, self.count, *arguments)
         self._finish(steps)
 
     def _finish(self, steps: int) -> None:
@@ -761,9 +808,8 @@ def warm_up() -> None:
     Compile the step's kernels into the disk cache (core.jit), or load them: once a process.
 
     One scenario stepped once (``advance``: the simulator node's path) and a batch of two, one
-    with bending walls and a motor, run long enough for the parallel kernel
-    (``advance_in_parallel``). scripts/bootstrap.sh calls it after installing, LocalPool before
-    it forks.
+    with bending walls and a motor, long enough to be spread over threads (the same kernel).
+    scripts/bootstrap.sh calls it after installing, LocalPool before it forks.
     """
     Simulator(Scenario()).step()
     bending = Scenario().with_values({'surface.foundation_stiffness': 1.5e5,

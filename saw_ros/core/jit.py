@@ -111,10 +111,10 @@ def use_cache(environ: Mapping[str, str] = os.environ, package: Path = PACKAGE) 
 
 # Whether the kernels of this package are cached on disk (``@numba.njit(cache=CACHE)``).
 CACHE = use_cache()
-# The parallel kernels on numba's own work queue: the OpenMP layer numba picks where GNU OpenMP is
-# installed kills the children the local pool forks after a parallel call ("fork() called from a
-# process already using GNU OpenMP"). The queue takes one parallel call at a time: the
-# simulator calls the parallel kernel from the main thread only (Dask's worker threads step
-# their batches with the serial one).
+# No kernel is parallel (a batch is spread over Python threads, dynamics.spread), but numba's
+# threading layer starts when its thread count is read (numba.get_num_threads, the count the
+# batch uses): its own work queue, never the OpenMP layer numba picks where GNU OpenMP is
+# installed, which kills the children the local pool forks ("fork() called from a process
+# already using GNU OpenMP").
 if not os.environ.get('NUMBA_THREADING_LAYER'):
     setattr(numba_config, 'THREADING_LAYER', 'workqueue')
