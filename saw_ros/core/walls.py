@@ -22,8 +22,9 @@ foundation (Hetenyi 1946), superposed over the tips. For a load P spread uniform
     outside:              w(r) = P / (2 k b) (D(|r| - b/2) - D(|r| + b/2))
 
 (the point load's P beta / (2 k) exp(-beta |r|) (cos + sin)(beta |r|) integrated over the
-patch). Why this one: it is exact for the beam (no mesh, nothing to converge), costs one n x n
-matrix of exponentials per surface and step, and holds every limit: EI -> 0 gives a Winkler bed
+patch). Why this one: it is exact for the beam (no mesh, nothing to converge; the kernels read
+the decay exp(-beta r) (cos, sin)(beta r) from a table within 6.3e-10 of its size, DECAY_ERROR),
+costs one n x n matrix per surface and step, and holds every limit: EI -> 0 gives a Winkler bed
 under each tip, P / (k b), a linear spring in series with the Hertz contact; EI and k -> infinity
 give w -> 0, the rigid wall. Quasi-static, because the wall's own time scale is shorter than
 the wave's (docs/walls.md: its mass on its foundation rings at about 110 Hz for the silicone sheet
