@@ -165,8 +165,12 @@ def press_tips(law: np.ndarray, tips: np.ndarray) -> None:
         factor = _hysteresis_gain(d, tips[DEPTH, p], kn_mean, kn_half, kn_rate)
         tips[FACTOR, p] = factor
         tips[DEPTH, p] = d
-        fn = math.sqrt(d) * d if exponent == 1.5 else d ** exponent
-        fn *= factor
+        # A free tip (most of them: about 8 of 38 touch) skips the square root; 0 * factor is
+        # the value the full expression gives it.
+        if d > 0.0:
+            fn = (math.sqrt(d) * d if exponent == 1.5 else d ** exponent) * factor
+        else:
+            fn = 0.0 * factor
         # Tangential: a spring from the anchor (taken at first touch), its own hysteresis on
         # the stretch, capped by Coulomb friction.
         anchor = x if tips[FREE, p] > 0.0 else tips[ANCHOR, p]
@@ -181,7 +185,10 @@ def press_tips(law: np.ndarray, tips: np.ndarray) -> None:
         # touch. The stretch remembered for the next rate is the spring's after the slip. A
         # spring unloading with e -> 0 has no stiffness left (gain 0, ft 0): it sticks, and
         # keeps its anchor (0 / 0 stopped the kernel at e = 5e-324).
-        offset = ft / gain if gain != 0.0 else anchor - x
+        if cap == 0.0 and gain > 0.0:
+            offset = ft                                        # ft / gain of a free tip: +-0
+        else:
+            offset = ft / gain if gain != 0.0 else anchor - x
         tips[STRETCH, p] = abs(offset)
         tips[ANCHOR, p] = offset + x
         tips[TRIAL, p], tips[CAP, p] = trial, cap
