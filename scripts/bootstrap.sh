@@ -68,9 +68,11 @@ ln -sf "$ROOT"/launch/*.launch.py "$VENV/share/saw_ros/launch/"
 "$ROOT/scripts/build_tf2_msgs.sh" "$VENV"
 
 # The physics core's kernels compiled into their disk cache once per version of them (the
-# folder saw_ros/core/jit.py names after a digest of the kernel modules), so that the first
-# simulate or simulator node loads them instead of compiling (docs/core.md).
-KERNELS="$(for f in $(grep -lF 'numba.njit' "$ROOT"/saw_ros/core/*.py | LC_ALL=C sort); do
+# folder saw_ros/core/jit.py names after a digest of the kernel modules: the same modules as
+# jit.kernel_sources picks, or the marker is never found and every run loads them again), so
+# that the first simulate or simulator node loads them instead of compiling (docs/core.md).
+KERNELS="$(for f in $(grep -lF -e 'numba.njit' -e '@compiled' "$ROOT"/saw_ros/core/*.py \
+    | LC_ALL=C sort); do
   printf '%s' "$(basename "$f")"; cat "$f"; done | sha256sum | cut -c1-16)"
 WARM="$ROOT/saw_ros/core/__pycache__/numba/kernels-$KERNELS/.warm"
 if [ -z "${NUMBA_CACHE_DIR:-}" ] && [ ! -e "$WARM" ]; then
