@@ -20,13 +20,12 @@ refuses a motor too light for the step, its load torque being explicit).
 from __future__ import annotations
 
 from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 import functools
 import math
 import os
 import threading
-from typing import Any, Callable, cast, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, cast, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
 import numba
 import numpy as np
@@ -50,6 +49,9 @@ from saw_ros.core.pool import batches, LocalPool, Pool
 from saw_ros.core.tips import place_tips, turned_table_value
 from saw_ros.core.walls import ACTIVE, bend_walls, LARGEST, WALL_FIELDS, WALL_ROWS, Walls
 from saw_ros.core.walls import WORK_ROWS
+
+if TYPE_CHECKING:
+    from concurrent.futures import ThreadPoolExecutor
 
 GRAVITY = 9.81  # m/s^2
 TWO_PI = 2.0 * math.pi
@@ -274,6 +276,8 @@ _helpers_lock = threading.Lock()
 def helper_threads(count: int) -> ThreadPoolExecutor:
     """Return this process's pool of at least ``count`` helper threads."""
     global _helpers
+    # Imported here: 6 ms of every start of the simulator node, which never spreads a batch.
+    from concurrent.futures import ThreadPoolExecutor
     with _helpers_lock:
         if _helpers is None or _helpers[0] != os.getpid() or _helpers[1] < count:
             _helpers = (os.getpid(), count,
