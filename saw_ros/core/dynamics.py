@@ -47,8 +47,8 @@ from saw_ros.core.motor import MOTOR_FIELDS, MotorLaw, TORQUE_CONSTANT, turn_hel
 from saw_ros.core.params import ParameterError, PLACEMENT_SHARE, RobotParams, Scenario
 from saw_ros.core.pool import batches, LocalPool, Pool
 from saw_ros.core.tips import place_tips, turned_table_value
-from saw_ros.core.walls import ACTIVE, bend_walls, LARGEST, WALL_FIELDS, WALL_ROWS, Walls
-from saw_ros.core.walls import WORK_ROWS
+from saw_ros.core.walls import ACTIVE, bend_walls, kernel, LARGEST, WALL_FIELDS, WALL_ROWS
+from saw_ros.core.walls import Walls, WORK_ROWS
 
 if TYPE_CHECKING:
     from concurrent.futures import ThreadPoolExecutor
@@ -103,11 +103,11 @@ def profile_voltage(phase: float, harmonics: np.ndarray, drive: np.ndarray) -> f
     return float(min(max(drive[0] * shape, 0.0), drive[1]))
 
 
-# Without numba's reference counts (as the wall kernels, core.walls.OPTIONS): it allocates
-# nothing, and its calls kept numba from pruning the counts of its eight arrays, an atomic
-# increment and decrement of six of them at every step (one thread's batch 3.6 -> 4.3 M
+# Compiled as the wall kernels are (core.walls.kernel: without numba's reference counts): it
+# allocates nothing, and its calls kept numba from pruning the counts of its eight arrays, an
+# atomic increment and decrement of six of them at every step (one thread's batch 3.6 -> 4.3 M
 # scenario-steps per CPU second without them).
-@numba.njit(cache=CACHE, _nrt=False)
+@kernel
 def move_body(dt: float, side: np.ndarray, rates: np.ndarray, scale: float,
               harmonics: np.ndarray, drive: np.ndarray, motor: np.ndarray, constants: np.ndarray,
               body: np.ndarray, tips: np.ndarray) -> int:
