@@ -19,8 +19,8 @@ and decodes them as it decodes foxglove_bridge's. The server is the Foxglove SDK
   A message reaches the clients up to BATCH_PERIOD later; its log time is the SDK's clock when
   the bridge hands it over. The commands (a client's own echo) keep a callback each.
 - The simulator's 1 kHz streams and /clock read best effort (``best_effort``): a reliable
-  reader cost the simulator's writers an acknowledgement protocol of its own, 20-26 us of a
-  step's CPU; best effort 8-10, and the client still gets every message on a working machine.
+  reader cost the simulator's writers an acknowledgement protocol of its own, 20-28 us of a
+  step's CPU; best effort 8-12, and the client still gets every message on a working machine.
   What DDS loses on the way in (the bridge's process without CPU for longer than its
   shared-memory queue holds) is counted, logged and sent to the clients as a status; the
   reliable reader before lost as much when stopped, silently (it takes from a history of
@@ -406,9 +406,9 @@ def best_effort(qos: QoSProfile) -> QoSProfile:
 
     A reliable reader costs its writer an acknowledgement protocol of its own (heartbeats to
     it, its ACKNACKs taken in by the writer's receive thread, a NACK-suppression timer on the
-    writer's event thread). The simulator's thread, the graph's limit at high real-time
-    factors, paid 20-26 us a step for a reliable bridge and 8-10 for a best-effort one
-    (docs/measurements.md, issue 34 part C). Nothing is repaired: a message the bridge's
+    writer's event thread). The simulator, which paces the graph, paid 20-28 us of CPU a step
+    for a reliable bridge and 8-12 for a best-effort one (docs/measurements.md, issue 34 part
+    C). Nothing is repaired: a message the bridge's
     process cannot take in (its shared-memory port queue full) is not sent again, which a
     viewer survives and the graph's recordings, reliable, do not depend on.
     """
