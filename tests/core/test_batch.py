@@ -5,6 +5,7 @@ import numba
 import numpy as np
 import pytest
 
+from saw_ros.bench.core import one_thread
 from saw_ros.core import DivergenceError, Scenario, Simulator
 from saw_ros.core import dynamics
 
@@ -28,15 +29,6 @@ def calls(monkeypatch):
         kernel(start, stop, *arguments)
     monkeypatch.setattr(dynamics, 'advance', recorded)
     return made
-
-
-def one_thread(function):
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        return function()
-    finally:
-        numba.set_num_threads(threads)
 
 
 def run(contacts=True):
