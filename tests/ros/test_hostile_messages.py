@@ -319,13 +319,10 @@ def graph(tmp_path_factory):
             processes[process] = ManagedProcess(
                 process, node_command(node, *remap, params=params), env=None, log_dir=log_dir)
         probe = Probe(context)
-        # Running: every guard reports, every output flows, simulated time past 1 s, and the
-        # comparison follows the helix (it has the simulator's parameters: motor on).
-        helix = lambda: table.JOINT_STATES in {  # noqa: E731
-            n for n, _ in probe.node.get_subscriber_names_and_types_by_node('comparison', '/')}
+        # Running: every guard reports, every output flows, simulated time past 1 s.
         assert wait_for(lambda: set(probe.inputs) >= set(GRAPH) and all(probe.heard.values())
-                        and probe.clock_ns > NS and helix(), 150.0, spin=probe.spin), \
-            (sorted(probe.inputs), probe.heard, probe.clock_ns, helix(),
+                        and probe.clock_ns > NS, 150.0, spin=probe.spin), \
+            (sorted(probe.inputs), probe.heard, probe.clock_ns,
              {p: proc.output()[-2000:] for p, proc in processes.items()
               if proc.returncode is not None})
         yield probe, processes
@@ -377,9 +374,11 @@ def test_every_node_survives_every_hostile_message(graph, capsys):
     pending = lambda: [(p, n) for n, readers in targets.items() for p in readers  # noqa: E731
                        if probe.refused(p, n) == 0]
     # A reader whose side of the match was not complete when the probe's was loses what was
-    # sent in between (volatile topics; seen once, the camera's /parameter_events): a topic
-    # still uncounted after 10 s is sent again, twice at most.
-    for _ in range(2):
+    # sent in between (volatile topics; seen once, the camera's /parameter_events), and a node
+    # that has not yet the simulator's values ignores /parameter_events naming it (a busy
+    # machine's simulator answered their request late): a topic still uncounted after 10 s is
+    # sent again, five times at most.
+    for _ in range(5):
         if wait_for(lambda: not pending(), 10.0, spin=probe.spin):
             break
         for name in {n for _, n in pending()}:

@@ -283,19 +283,25 @@ class CameraNode(Node):
     # -- inputs --------------------------------------------------------------------------------
     def _report_matched(self) -> None:
         self.simulator_parameters.request()
-        if not all(sub.get_publisher_count() > 0 for sub in self._inputs):
-            return
-        if self._matched_at is None:
-            self._matched_at = time.monotonic()
-            self.get_logger().info('inputs matched')
-        # Ready once the simulator's robot is known, so that the first frame draws it; without
-        # a simulator (a replay) after SIMULATOR_WAIT, with the camera's own parameters.
-        if not self.simulator_parameters.known and \
-                time.monotonic() - self._matched_at < SIMULATOR_WAIT:
-            return
-        self._readiness.announce()
-        self._match_timer.cancel()
-        self.destroy_timer(self._match_timer)
+        if not self._readiness.announced:
+            if not all(sub.get_publisher_count() > 0 for sub in self._inputs):
+                return
+            if self._matched_at is None:
+                self._matched_at = time.monotonic()
+                self.get_logger().info('inputs matched')
+            # Ready once the simulator's robot is known, so that the first frame draws it;
+            # without a simulator (a replay) after SIMULATOR_WAIT, with the camera's own
+            # parameters.
+            if not self.simulator_parameters.known and \
+                    time.monotonic() - self._matched_at < SIMULATOR_WAIT:
+                return
+            self._readiness.announce()
+        # Asked on until the simulator's values come: on a busy machine its parameter service
+        # was found after SIMULATOR_WAIT, the camera never asked again, drew its own robot and
+        # ignored every /parameter_events naming the simulator (they apply to values it has).
+        if self.simulator_parameters.known:
+            self._match_timer.cancel()
+            self.destroy_timer(self._match_timer)
 
     def _draw_simulators(self, values: dict) -> bool:
         """Draw the robot and the gap the simulator runs (SimulatorParameters' callback)."""
