@@ -9,6 +9,7 @@ change; it returns False to refuse a set, and the last accepted one stays.
 """
 from __future__ import annotations
 
+import time
 from typing import Any, Callable, Dict, Optional, Sequence
 
 from rcl_interfaces.msg import ParameterEvent, ParameterType, ParameterValue
@@ -22,6 +23,10 @@ from saw_ros.ros.params import SIMULATOR_EXCLUDED
 
 # Every Scenario name the simulator declares (it replaces integration.duration by its own
 # `duration`): rclpy answers nothing at all if one name asked for is not declared.
+# s a request for the simulator's values may go unanswered before it is asked again: a request
+# sent before the service's side of the match was complete is lost, and its future never done
+# (the comparison never learned the values and ignored /parameter_events for the whole run).
+REQUEST_RETRY_S = 2.0
 SCENARIO_NAMES = tuple(n for n in Scenario().flat() if n not in SIMULATOR_EXCLUDED)
 
 
@@ -44,6 +49,7 @@ class SimulatorParameters:
         self._on_values = on_values
         self._client = node.create_client(GetParameters, f'/{self.simulator}/get_parameters')
         self._pending: Optional[Any] = None
+        self._asked_at = 0.0
         # Any participant can publish a ParameterEvent naming the simulator: on_values checks the
         # values (a Scenario refuses what the simulator would), the guard what cannot be read.
         guard.subscribe(ParameterEvent, '/parameter_events', self._on_event,
@@ -59,9 +65,14 @@ class SimulatorParameters:
         return bool(self._client.service_is_ready())
 
     def request(self) -> None:
-        """Ask the simulator, unless its values are known, asked for already or it is not there."""
-        if self.values or self._pending is not None or not self._client.service_is_ready():
+        """Ask the simulator, unless its values are known, asked for lately or it is not there."""
+        if self.values or not self._client.service_is_ready():
             return
+        if self._pending is not None:
+            if time.monotonic() - self._asked_at < REQUEST_RETRY_S:
+                return
+            self._client.remove_pending_request(self._pending)
+        self._asked_at = time.monotonic()
         self._pending = self._client.call_async(GetParameters.Request(names=self.names))
         self._pending.add_done_callback(self._on_answer)
 

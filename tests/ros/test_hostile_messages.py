@@ -63,7 +63,9 @@ UNUSED = {'vision': {table.IMAGE_COMPRESSED}, 'vision_compressed': {table.IMAGE}
 # The second vision node's outputs that other nodes read go elsewhere: two trackers on one topic
 # would interleave their stamps.
 REMAPS = {'vision_compressed': (table.TRACKING_POSE, table.TRACKING_TWIST_SMOOTHED)}
-OUTPUT = {'simulator': table.CLOCK, 'camera': table.CAMERA_INFO,
+# (The comparison reports once it has the simulator's values: until then it cannot judge a
+# /parameter_events naming the simulator, and ignores it.)
+OUTPUT = {'simulator': table.CLOCK, 'camera': table.CAMERA_INFO, 'comparison': table.COMPARISON,
           'vision': table.TRACKING_STATUS, 'vision_compressed': table.TRACKING_STATUS,
           'speed_controller': table.MOTOR_COMMANDS,
           'speed_controller_tracking': table.MOTOR_COMMANDS,
