@@ -185,8 +185,8 @@ def test_every_parameter_at_both_ends_of_its_range_and_one_past(simulator, clien
     assert len(taken) >= 30, taken
     # Still near its first pace (~1 kHz at real-time factor 1 where the machine keeps up; under
     # the slower kind's cap the other tests' load moved it from 961 to 452 steps/s in one run, so
-    # a quarter: a node left stepping in a degenerate state would be far slower), 2000 steps,
-    # every one received.
+    # a quarter: what this checks is that the sweep left the node neither stopped nor crawling),
+    # 2000 steps, every one received.
     ticks = client.ticks
     end_rate = client.step_rate(2000)
     assert end_rate >= 0.25 * start_rate, (start_rate, end_rate, proc.output()[-3000:])
