@@ -51,10 +51,6 @@ from saw_ros.ros.simulator_parameters import SCENARIO_NAMES, SimulatorParameters
 from sensor_msgs.msg import JointState
 
 TRACK_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-# The tracking has caught up with the ground truth when its newest pose is stamped within this
-# of the newest ground truth's: a frame of the 60 fps camera (16.7 ms; the last frame may precede
-# the last step by up to one). A slower camera's last frame waits out idle_timeout instead.
-TRACKING_CAUGHT_UP_NS = 20_000_000
 
 
 # (name, default, spec metadata); read_only ones are read once, at start. declare_spec checks
@@ -71,9 +67,8 @@ PARAMETERS = (
     ('report_period', 1.0, spec_meta('s', 'wall-clock seconds between reports on '
                                           '/saw/comparison', 0.0, None, low_open=True,
                                      read_only=True)),
-    ('idle_timeout', 2.0, spec_meta('s', 'wall-clock seconds without ground truth (and without '
-                                         'tracking, while the tracking lags behind the ground '
-                                         'truth) after which the run has ended and the final '
+    ('idle_timeout', 2.0, spec_meta('s', 'wall-clock seconds without ground truth and without '
+                                         'tracking after which the run has ended and the final '
                                          'summary is published', 0.0,
                                     None, low_open=True, read_only=False)),
     ('report_path', '', spec_meta('', 'write the final summary as JSON here; empty = do not',
@@ -142,7 +137,6 @@ class ComparisonNode(Node):
         self._last_truth_wall = None
         self._last_truth_ns = None       # stamp of the latest pose
         self._last_tracked_wall = None
-        self._last_tracked_ns = None     # stamp of the latest tracked pose
         self.publisher = self.create_publisher(DiagnosticArray, topics.COMPARISON, LATCHED_QOS)
         self._truth_order = checks.StampOrder()
         self._tracked_order = checks.StampOrder()
@@ -229,7 +223,6 @@ class ComparisonNode(Node):
         checks.pose(p.x, p.y, (o.x, o.y, o.z, o.w))
         t_ns = conv.stamp_ns(msg.header.stamp)
         self._tracked_order.check(t_ns)
-        self._last_tracked_ns = t_ns
         self._last_tracked_wall = time.monotonic()
         self.comparator.add_tracked(t_ns / NS_PER_S, p.x)
 
@@ -242,13 +235,12 @@ class ComparisonNode(Node):
         now = time.monotonic()
         idle = self._last_truth_wall is not None and now - self._last_truth_wall > timeout
         # The ground truth has ended, but the tracker (a busy machine's vision node, seconds
-        # behind) still delivers frames from before its end: the final summary waits for them,
-        # or its window would end at the last frame tracked so far, a whole turn short of the
-        # in-process campaign's.
-        tracking_behind = self._last_tracked_ns is not None and \
-            self._last_truth_ns - self._last_tracked_ns > TRACKING_CAUGHT_UP_NS and \
+        # behind) may still deliver frames from before its end: the final summary waits until
+        # the tracking is quiet too, or its window would end at the last frame tracked so far,
+        # a whole turn short of the in-process campaign's.
+        tracking = self._last_tracked_wall is not None and \
             now - self._last_tracked_wall <= timeout
-        idle = idle and not tracking_behind
+        idle = idle and not tracking
         if idle and not self.final_sent:
             self.publish(final=True)
         elif not idle:
