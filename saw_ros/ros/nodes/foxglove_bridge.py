@@ -324,7 +324,7 @@ class FoxgloveBridge(Node):
             return
         text = (f'{self._lost_unlogged} message(s) lost before the bridge since the last '
                 'warning (read best effort, not sent again): the clients miss them. Total so '
-                'far: ' + ', '.join(f'{k} {v}' for k, v in self.lost.items()))
+                'far: ' + self._lost_by_topic())
         self.get_logger().warning(text)
         self._status(f'saw_ros bridge: {text}')
         self._last_lost_warning = now
@@ -397,7 +397,10 @@ class FoxgloveBridge(Node):
         self.get_logger().info(
             f'stopped: {self.forwarded} messages forwarded, {self.published} client commands '
             f'published, {self.refused} refused, {lost} lost before the bridge' + (
-                ' (' + ', '.join(f'{k} {v}' for k, v in self.lost.items()) + ')' if lost else ''))
+                f' ({self._lost_by_topic()})' if lost else ''))
+
+    def _lost_by_topic(self) -> str:
+        return ', '.join(f'{k} {v}' for k, v in self.lost.items())
 
 
 def best_effort(qos: QoSProfile) -> QoSProfile:
